@@ -1,0 +1,189 @@
+"""The in-memory form of a state-machine model, as loaded from YAML."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import transitions
+
+# Keys of Model.locations: ("state" | "phase" | "method" | "attribute", name)
+# or (top-level key,) such as ("initial",), ("controller",), ("extends",).
+Location = tuple[str, int | None]
+
+
+@dataclass(frozen=True)
+class StateInfo:
+    """A state; ``busy`` states run phases and are left by ``done``."""
+
+    name: str
+    busy: bool
+    description: str
+    line: int | None
+    file: str = ""
+
+
+@dataclass(frozen=True)
+class Transition:
+    """One move for one source state (lists of sources are expanded)."""
+
+    trigger: str
+    source: str
+    dest: str
+    guards: tuple[str, ...]
+    unless: tuple[str, ...]
+    phases: tuple[str, ...]
+    file: str
+    line: int | None
+
+    def label(self) -> str:
+        """``trigger [guard, !unless] /Phase,Phase`` for diagrams and messages."""
+        text = self.trigger
+        conditions = [*self.guards, *(f"!{g}" for g in self.unless)]
+        if conditions:
+            text += f" [{', '.join(conditions)}]"
+        if self.phases:
+            text += f" /{','.join(self.phases)}"
+        return text
+
+    def __str__(self) -> str:
+        return f"{self.trigger} {self.source}->{self.dest}"
+
+
+@dataclass(frozen=True)
+class AttributeRule:
+    """Where a put to an attribute is allowed, and the trigger it fires."""
+
+    allowed: frozenset[str]
+    trigger: str | None
+
+
+class Model:
+    """A validated state machine: states, phases, transitions and call rules.
+
+    Built by :func:`malcolm.fsm.load_model`; ``parent`` is the model it
+    extends (or None) and ``locations`` maps what was declared to its
+    ``(file, line)`` so that problems can say where they are.
+    """
+
+    def __init__(
+        self,
+        *,
+        name: str,
+        description: str,
+        path: Path,
+        initial: str,
+        controller: str | None,
+        states: dict[str, StateInfo],
+        phases: dict[str, str],
+        transitions: list[Transition],
+        methods: dict[str, frozenset[str]],
+        attributes: dict[str, AttributeRule],
+        parent: Model | None = None,
+        locations: dict[tuple[str, ...], Location] | None = None,
+    ) -> None:
+        self.name = name
+        self.description = description
+        self.path = path
+        self.initial = initial
+        self.controller = controller
+        self.states = states
+        self.phases = phases
+        self.transitions = transitions
+        self.methods = methods
+        self.attributes = attributes
+        self.parent = parent
+        self.locations = locations or {}
+
+    def __repr__(self) -> str:
+        return f"<Model {self.name} from {self.path}>"
+
+    def where(self, *key: str) -> Location:
+        """The ``(file, line)`` where ``key`` was declared, else the model file."""
+        return self.locations.get(key, (str(self.path), None))
+
+    # Queries -----------------------------------------------------------------
+
+    def guards(self) -> set[str]:
+        """Every guard name used on a transition, as ``guards`` or ``unless``."""
+        return {g for t in self.transitions for g in (*t.guards, *t.unless)}
+
+    def busy_states(self) -> set[str]:
+        return {name for name, info in self.states.items() if info.busy}
+
+    def triggers(self) -> set[str]:
+        """Every trigger of every transition."""
+        return {t.trigger for t in self.transitions}
+
+    def transitions_for(self, trigger: str, source: str) -> list[Transition]:
+        """The transitions ``trigger`` may take from ``source``, in order."""
+        return [
+            t for t in self.transitions if t.trigger == trigger and t.source == source
+        ]
+
+    def triggers_from(self, source: str) -> set[str]:
+        return {t.trigger for t in self.transitions if t.source == source}
+
+    def moves(self) -> dict[str, set[str]]:
+        """Source state -> destination states, over all triggers and guards."""
+        result: dict[str, set[str]] = {name: set() for name in self.states}
+        for t in self.transitions:
+            result[t.source].add(t.dest)
+        return result
+
+    def allows(self, call: str, state: str) -> bool:
+        """Whether method ``call`` may be called in ``state``.
+
+        Only calls listed under ``methods`` are restricted.
+        """
+        allowed = self.methods.get(call)
+        return allowed is None or state in allowed
+
+    def put_allowed(self, attribute: str, state: str) -> bool:
+        """Whether ``attribute`` may be put in ``state``.
+
+        Only attributes listed under ``attributes`` are restricted.
+        """
+        rule = self.attributes.get(attribute)
+        return rule is None or state in rule.allowed
+
+    # Machines and pictures ---------------------------------------------------
+
+    def build_machine(self, model_obj: object, **kwargs: Any) -> transitions.Machine:
+        """A ``transitions.Machine`` driving ``model_obj``.
+
+        Guards are method names that ``transitions`` looks up on ``model_obj``.
+        Phases are not run by the machine: the controller runs them before
+        firing the trigger. ``kwargs`` are passed on and override the defaults.
+        """
+        options: dict[str, Any] = {
+            "model": model_obj,
+            "states": list(self.states),
+            "transitions": [
+                {
+                    "trigger": t.trigger,
+                    "source": t.source,
+                    "dest": t.dest,
+                    "conditions": list(t.guards),
+                    "unless": list(t.unless),
+                }
+                for t in self.transitions
+            ],
+            "initial": self.initial,
+            "auto_transitions": False,
+            "ignore_invalid_triggers": False,
+            "send_event": False,
+        }
+        options.update(kwargs)
+        return transitions.Machine(**options)
+
+    def to_mermaid(self) -> str:
+        from .draw import to_mermaid
+
+        return to_mermaid(self)
+
+    def to_dot(self) -> str:
+        from .draw import to_dot
+
+        return to_dot(self)
