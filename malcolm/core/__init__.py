@@ -1,0 +1,42 @@
+"""Core data model: blocks, attributes, methods, metas, alarms, the process."""
+
+from .alarm import Alarm, AlarmSeverity, AlarmStatus
+from .block import Block
+from .errors import (
+    AbortedError,
+    BadValueError,
+    MalcolmError,
+    NotAllowedError,
+    NotFoundError,
+    NotWriteableError,
+    PhaseTimeoutError,
+    WaitTimeoutError,
+)
+from .fields import Attribute, Field, Method, MethodLog
+from .metas import (
+    BlockMeta,
+    BooleanArrayMeta,
+    BooleanMeta,
+    ChoiceArrayMeta,
+    ChoiceMeta,
+    MapMeta,
+    Meta,
+    MethodMeta,
+    NumberArrayMeta,
+    NumberMeta,
+    StringArrayMeta,
+    StringMeta,
+    TableMeta,
+)
+from .process import Process, Subscription
+from .timestamp import TimeStamp
+
+__all__ = [
+    "AbortedError", "Alarm", "AlarmSeverity", "AlarmStatus", "Attribute",
+    "BadValueError", "Block", "BlockMeta", "BooleanArrayMeta", "BooleanMeta",
+    "ChoiceArrayMeta", "ChoiceMeta", "Field", "MalcolmError", "MapMeta", "Meta",
+    "Method", "MethodLog", "MethodMeta", "NotAllowedError", "NotFoundError",
+    "NotWriteableError", "NumberArrayMeta", "NumberMeta", "PhaseTimeoutError",
+    "Process", "StringArrayMeta", "StringMeta", "Subscription", "TableMeta",
+    "TimeStamp", "WaitTimeoutError",
+]  # fmt: skip

@@ -1,0 +1,188 @@
+"""Attribute and Method: the fields of a block."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from .alarm import Alarm
+from .errors import BadValueError
+from .metas import Meta, MethodMeta, TableMeta, plain
+from .timestamp import TimeStamp
+
+if TYPE_CHECKING:
+    from .block import Block
+
+Change = list  # [path: list[str], value] or [path] for a delete
+
+
+class Field:
+    """Something with a name that lives in a block and reports its changes."""
+
+    typeid = ""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.block: Block | None = None
+
+    def _notify(self, changes: list[Change]) -> None:
+        if self.block is not None:
+            self.block.notify(changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+
+class Attribute(Field):
+    """A value with alarm, timeStamp and meta.
+
+    ``put_handler`` (set by the part that owns the attribute) is what an
+    external put calls; it may be a plain or an async function. Without one,
+    a put of a writeable attribute just sets the value.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        meta: Meta,
+        value: Any = None,
+        alarm: Alarm = Alarm.ok,
+        timeStamp: TimeStamp | None = None,  # noqa: N803
+        put_handler: Callable[[Any], Any] | None = None,
+    ) -> None:
+        super().__init__(name)
+        self.meta = meta
+        self.value = meta.validate(meta.default() if value is None else value)
+        self.alarm = alarm
+        self.timeStamp = timeStamp or TimeStamp.now()
+        self.put_handler = put_handler
+
+    @property
+    def typeid(self) -> str:  # type: ignore[override]
+        return self.meta.nt_typeid
+
+    def validate(self, value: Any) -> Any:
+        """Return the canonical value, or raise BadValueError naming block.field."""
+        try:
+            return self.meta.validate(value)
+        except BadValueError as e:
+            raise BadValueError(f"{self.path_name}: {e}") from None
+
+    @property
+    def path_name(self) -> str:
+        return f"{self.block.mri}.{self.name}" if self.block else self.name
+
+    def set_value(
+        self,
+        value: Any,
+        alarm: Alarm | None = None,
+        timeStamp: TimeStamp | None = None,  # noqa: N803
+        validate: bool = True,
+    ) -> None:
+        """Set the value (and optionally alarm); publish one delta."""
+        if validate:
+            value = self.validate(value)
+        self.value = value
+        self.timeStamp = timeStamp or TimeStamp.now()
+        changes: list[Change] = [[[self.name, "value"], plain(value)]]
+        if alarm is not None and alarm != self.alarm:
+            self.alarm = alarm
+            changes.append([[self.name, "alarm"], alarm.to_dict()])
+        changes.append([[self.name, "timeStamp"], self.timeStamp.to_dict()])
+        self._notify(changes)
+
+    def set_alarm(self, alarm: Alarm) -> None:
+        if alarm != self.alarm:
+            self.alarm = alarm
+            self.timeStamp = TimeStamp.now()
+            self._notify(
+                [
+                    [[self.name, "alarm"], alarm.to_dict()],
+                    [[self.name, "timeStamp"], self.timeStamp.to_dict()],
+                ]
+            )
+
+    def set_writeable(self, writeable: bool) -> None:
+        if writeable != self.meta.writeable:
+            self.meta.writeable = writeable
+            self._notify([[[self.name, "meta", "writeable"], writeable]])
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"typeid": self.typeid}
+        if isinstance(self.meta, TableMeta):
+            d["labels"] = [m.label or k for k, m in self.meta.elements.items()]
+            value = dict(plain(self.value))
+            value["typeid"] = "malcolm:core/Table:1.0"
+            d["value"] = value
+        else:
+            d["value"] = plain(self.value)
+        d["alarm"] = self.alarm.to_dict()
+        d["timeStamp"] = self.timeStamp.to_dict()
+        d["meta"] = self.meta.to_dict()
+        return d
+
+
+@dataclass
+class MethodLog:
+    """The arguments a method took, or what it returned, with alarm and time."""
+
+    value: dict[str, Any] = field(default_factory=dict)
+    present: list[str] = field(default_factory=list)
+    alarm: Alarm = Alarm.ok
+    timeStamp: TimeStamp = TimeStamp.zero  # noqa: N815
+
+    typeid = "malcolm:core/MethodLog:1.0"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "typeid": self.typeid,
+            "value": plain(self.value),
+            "present": list(self.present),
+            "alarm": self.alarm.to_dict(),
+            "timeStamp": self.timeStamp.to_dict(),
+        }
+
+
+class Method(Field):
+    """A callable field: takes arguments described by its meta, returns a map.
+
+    ``handler`` receives the validated arguments as keywords and may be a
+    plain or an async function.
+    """
+
+    typeid = "malcolm:core/Method:1.1"
+
+    def __init__(
+        self,
+        name: str,
+        meta: MethodMeta,
+        handler: Callable[..., Any] | None = None,
+    ) -> None:
+        super().__init__(name)
+        self.meta = meta
+        self.handler = handler
+        self.took = MethodLog()
+        self.returned = MethodLog()
+
+    def set_took(self, args: Mapping[str, Any]) -> None:
+        self.took = MethodLog(dict(args), list(args), Alarm.ok, TimeStamp.now())
+        self._notify([[[self.name, "took"], self.took.to_dict()]])
+
+    def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
+        value = dict(value or {})
+        self.returned = MethodLog(value, list(value), alarm, TimeStamp.now())
+        self._notify([[[self.name, "returned"], self.returned.to_dict()]])
+
+    def set_writeable(self, writeable: bool) -> None:
+        if writeable != self.meta.writeable:
+            self.meta.writeable = writeable
+            self._notify([[[self.name, "meta", "writeable"], writeable]])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "typeid": self.typeid,
+            "took": self.took.to_dict(),
+            "returned": self.returned.to_dict(),
+            "meta": self.meta.to_dict(),
+        }

@@ -1,0 +1,502 @@
+"""Metas: the type, description and display hints of an attribute or argument.
+
+Each meta validates values (returning the canonical form, or raising
+BadValueError with a message that names the problem) and converts itself to
+the Malcolm structure as plain data (``to_dict``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any, ClassVar
+
+from .errors import BadValueError
+
+NT_SCALAR = "epics:nt/NTScalar:1.0"
+NT_SCALAR_ARRAY = "epics:nt/NTScalarArray:1.0"
+NT_TABLE = "epics:nt/NTTable:1.0"
+
+INT_RANGES = {
+    "int8": (-(2**7), 2**7 - 1),
+    "uint8": (0, 2**8 - 1),
+    "int16": (-(2**15), 2**15 - 1),
+    "uint16": (0, 2**16 - 1),
+    "int32": (-(2**31), 2**31 - 1),
+    "uint32": (0, 2**32 - 1),
+    "int64": (-(2**63), 2**63 - 1),
+    "uint64": (0, 2**64 - 1),
+}
+FLOAT_DTYPES = ("float32", "float64")
+DTYPES = tuple(INT_RANGES) + FLOAT_DTYPES
+
+
+def _describe(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+class Meta:
+    """Base of all metas: description, tags, writeable, label."""
+
+    typeid: ClassVar[str] = ""
+    nt_typeid: ClassVar[str] = NT_SCALAR
+
+    def __init__(
+        self,
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = False,
+        label: str = "",
+    ) -> None:
+        self.description = description
+        self.tags = tuple(tags)
+        self.writeable = writeable
+        self.label = label
+
+    def validate(self, value: Any) -> Any:
+        """Return ``value`` in canonical form or raise BadValueError."""
+        return value
+
+    def default(self) -> Any:
+        return None
+
+    def _common(self) -> dict[str, Any]:
+        return {
+            "typeid": self.typeid,
+            "description": self.description,
+            "tags": list(self.tags),
+            "writeable": self.writeable,
+            "label": self.label,
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        return self._common()
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.description!r})"
+
+
+def _number(dtype: str, value: Any) -> int | float:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        and not (hasattr(value, "dtype") and hasattr(value, "item"))
+    ):
+        if isinstance(value, str):
+            try:
+                value = float(value) if dtype in FLOAT_DTYPES else int(value, 0)
+            except ValueError:
+                raise BadValueError(
+                    f"expected a number ({dtype}), got {_describe(value)}"
+                ) from None
+        else:
+            raise BadValueError(f"expected a number ({dtype}), got {_describe(value)}")
+    if hasattr(value, "item"):
+        value = value.item()
+    if dtype in FLOAT_DTYPES:
+        return float(value)
+    if isinstance(value, float):
+        if not value.is_integer():
+            raise BadValueError(f"expected an integer ({dtype}), got {value!r}")
+        value = int(value)
+    lo, hi = INT_RANGES[dtype]
+    if not lo <= value <= hi:
+        raise BadValueError(f"{value} is out of range for {dtype} [{lo}, {hi}]")
+    return int(value)
+
+
+class NumberMeta(Meta):
+    """A number with a dtype (int8..uint64, float32, float64) and display hints."""
+
+    typeid = "malcolm:core/NumberMeta:1.0"
+
+    def __init__(
+        self,
+        dtype: str = "float64",
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = False,
+        label: str = "",
+        display: Mapping[str, Any] | None = None,
+    ) -> None:
+        if dtype not in DTYPES:
+            raise BadValueError(f"unknown dtype {dtype!r}, expected one of {DTYPES}")
+        super().__init__(description, tags, writeable, label)
+        self.dtype = dtype
+        self.display = dict(display or {})
+
+    def validate(self, value: Any) -> int | float:
+        value = _number(self.dtype, value)
+        lo = self.display.get("limitLow")
+        hi = self.display.get("limitHigh")
+        if lo is not None and hi is not None and lo < hi and not lo <= value <= hi:
+            raise BadValueError(f"{value} is outside the limits [{lo}, {hi}]")
+        return value
+
+    def default(self) -> int | float:
+        return 0.0 if self.dtype in FLOAT_DTYPES else 0
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self._common()
+        d["dtype"] = self.dtype
+        display = {
+            "typeid": "display_t",
+            "limitLow": 0.0,
+            "limitHigh": 0.0,
+            "description": "",
+            "precision": 8 if self.dtype in FLOAT_DTYPES else 0,
+            "units": "",
+        }
+        display.update(self.display)
+        d["display"] = display
+        return d
+
+
+class StringMeta(Meta):
+    """A string."""
+
+    typeid = "malcolm:core/StringMeta:1.0"
+
+    def validate(self, value: Any) -> str:
+        if value is None:
+            return ""
+        if not isinstance(value, str):
+            raise BadValueError(f"expected a string, got {_describe(value)}")
+        return value
+
+    def default(self) -> str:
+        return ""
+
+
+_TRUE = {"true", "yes", "on", "1"}
+_FALSE = {"false", "no", "off", "0"}
+
+
+class BooleanMeta(Meta):
+    """True or False (strings yes/no/true/false and 0/1 are accepted)."""
+
+    typeid = "malcolm:core/BooleanMeta:1.0"
+
+    def validate(self, value: Any) -> bool:
+        if isinstance(value, bool):
+            return value
+        if hasattr(value, "dtype") and str(value.dtype) == "bool":
+            return bool(value)
+        if isinstance(value, int) and value in (0, 1):
+            return bool(value)
+        if isinstance(value, str) and value.lower() in _TRUE | _FALSE:
+            return value.lower() in _TRUE
+        raise BadValueError(f"expected a boolean, got {_describe(value)}")
+
+    def default(self) -> bool:
+        return False
+
+
+class ChoiceMeta(Meta):
+    """One of a list of strings (an index into the list is accepted too)."""
+
+    typeid = "malcolm:core/ChoiceMeta:1.0"
+
+    def __init__(
+        self,
+        choices: Sequence[str] = (),
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = False,
+        label: str = "",
+    ) -> None:
+        super().__init__(description, tags, writeable, label)
+        self.choices = tuple(str(c) for c in choices)
+
+    def validate(self, value: Any) -> str:
+        if isinstance(value, str) and value in self.choices:
+            return value
+        if isinstance(value, int) and not isinstance(value, bool):
+            if 0 <= value < len(self.choices):
+                return self.choices[value]
+        if value is None and self.choices:
+            return self.choices[0]
+        raise BadValueError(
+            f"{_describe(value)} is not one of {', '.join(self.choices) or '(none)'}"
+        )
+
+    def default(self) -> str:
+        return self.choices[0] if self.choices else ""
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self._common()
+        d["choices"] = list(self.choices)
+        return d
+
+
+class ArrayMeta(Meta):
+    """Base for array metas: values are tuples of the element type."""
+
+    nt_typeid = NT_SCALAR_ARRAY
+    element: Meta
+
+    def validate(self, value: Any) -> tuple[Any, ...]:
+        if value is None:
+            return ()
+        if isinstance(value, str | bytes) or not isinstance(value, Iterable):
+            raise BadValueError(f"expected an array, got {_describe(value)}")
+        out = []
+        for i, v in enumerate(value):
+            try:
+                out.append(self.element.validate(v))
+            except BadValueError as e:
+                raise BadValueError(f"[{i}]: {e}") from None
+        return tuple(out)
+
+    def default(self) -> tuple[Any, ...]:
+        return ()
+
+
+class NumberArrayMeta(ArrayMeta):
+    typeid = "malcolm:core/NumberArrayMeta:1.0"
+
+    def __init__(
+        self,
+        dtype: str = "float64",
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = False,
+        label: str = "",
+    ) -> None:
+        super().__init__(description, tags, writeable, label)
+        self.dtype = dtype
+        self.element = NumberMeta(dtype)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self._common()
+        d["dtype"] = self.dtype
+        return d
+
+
+class StringArrayMeta(ArrayMeta):
+    typeid = "malcolm:core/StringArrayMeta:1.0"
+
+    def __init__(
+        self,
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = False,
+        label: str = "",
+    ) -> None:
+        super().__init__(description, tags, writeable, label)
+        self.element = StringMeta()
+
+
+class BooleanArrayMeta(ArrayMeta):
+    typeid = "malcolm:core/BooleanArrayMeta:1.0"
+
+    def __init__(
+        self,
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = False,
+        label: str = "",
+    ) -> None:
+        super().__init__(description, tags, writeable, label)
+        self.element = BooleanMeta()
+
+
+class ChoiceArrayMeta(ArrayMeta):
+    typeid = "malcolm:core/ChoiceArrayMeta:1.0"
+
+    def __init__(
+        self,
+        choices: Sequence[str] = (),
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = False,
+        label: str = "",
+    ) -> None:
+        super().__init__(description, tags, writeable, label)
+        self.choices = tuple(choices)
+        self.element = ChoiceMeta(choices)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self._common()
+        d["choices"] = list(self.choices)
+        return d
+
+
+class TableMeta(Meta):
+    """A table: named columns, each an array meta.
+
+    Values are dicts of column name to tuple, all the same length. A list of
+    row dicts (as saved designs write tables) is accepted too.
+    """
+
+    typeid = "malcolm:core/TableMeta:1.0"
+    nt_typeid = NT_TABLE
+
+    def __init__(
+        self,
+        elements: Mapping[str, ArrayMeta],
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = False,
+        label: str = "",
+    ) -> None:
+        super().__init__(description, tags, writeable, label)
+        self.elements = dict(elements)
+
+    def validate(self, value: Any) -> dict[str, tuple[Any, ...]]:
+        if value is None:
+            return self.default()
+        if isinstance(value, list | tuple):  # rows
+            cols: dict[str, list[Any]] = {k: [] for k in self.elements}
+            for i, row in enumerate(value):
+                if not isinstance(row, Mapping):
+                    raise BadValueError(f"row {i}: expected a mapping of column values")
+                extra = set(row) - set(self.elements)
+                if extra:
+                    raise BadValueError(f"row {i}: unknown column {sorted(extra)[0]!r}")
+                for k, meta in self.elements.items():
+                    cols[k].append(row.get(k, meta.element.default()))
+            value = cols
+        if not isinstance(value, Mapping):
+            raise BadValueError(f"expected a table, got {_describe(value)}")
+        extra = set(value) - set(self.elements) - {"typeid"}
+        if extra:
+            raise BadValueError(f"unknown column {sorted(extra)[0]!r}")
+        out: dict[str, tuple[Any, ...]] = {}
+        length = None
+        for k, meta in self.elements.items():
+            try:
+                col = meta.validate(value.get(k, ()))
+            except BadValueError as e:
+                raise BadValueError(f"column {k}{e}") from None
+            if length is None:
+                length = len(col)
+            elif len(col) != length:
+                raise BadValueError(
+                    f"column {k} has {len(col)} rows, expected {length}"
+                )
+            out[k] = col
+        return out
+
+    def default(self) -> dict[str, tuple[Any, ...]]:
+        return {k: () for k in self.elements}
+
+    def rows(self, value: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
+        n = len(next(iter(value.values()), ()))
+        return [{k: value[k][i] for k in self.elements} for i in range(n)]
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self._common()
+        d["elements"] = {k: m.to_dict() for k, m in self.elements.items()}
+        return d
+
+
+class MapMeta(Meta):
+    """Named elements plus which of them are required (a method's takes/returns)."""
+
+    typeid = "malcolm:core/MapMeta:1.0"
+
+    def __init__(
+        self,
+        elements: Mapping[str, Meta] | None = None,
+        required: Iterable[str] = (),
+        description: str = "",
+    ) -> None:
+        super().__init__(description)
+        self.elements = dict(elements or {})
+        self.required = tuple(required)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "typeid": self.typeid,
+            "elements": {k: m.to_dict() for k, m in self.elements.items()},
+            "required": list(self.required),
+        }
+
+
+class MethodMeta(Meta):
+    """What a method takes and returns, with defaults."""
+
+    typeid = "malcolm:core/MethodMeta:1.1"
+
+    def __init__(
+        self,
+        takes: MapMeta | None = None,
+        returns: MapMeta | None = None,
+        defaults: Mapping[str, Any] | None = None,
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = True,
+        label: str = "",
+    ) -> None:
+        super().__init__(description, tags, writeable, label)
+        self.takes = takes or MapMeta()
+        self.returns = returns or MapMeta()
+        self.defaults = dict(defaults or {})
+
+    def validate_args(self, method: str, args: Mapping[str, Any]) -> dict[str, Any]:
+        """Check call arguments, apply defaults; errors name ``method.arg``."""
+        if not isinstance(args, Mapping):
+            raise BadValueError(f"{method}: arguments must be a mapping")
+        unknown = [k for k in args if k not in self.takes.elements]
+        if unknown:
+            takes = ", ".join(self.takes.elements) or "no arguments"
+            raise BadValueError(
+                f"{method}: unknown argument {unknown[0]!r} (takes {takes})"
+            )
+        out: dict[str, Any] = {}
+        for name, meta in self.takes.elements.items():
+            if name in args and args[name] is not None:
+                try:
+                    out[name] = meta.validate(args[name])
+                except BadValueError as e:
+                    raise BadValueError(f"{method}.{name}: {e}") from None
+            elif name in self.defaults:
+                out[name] = self.defaults[name]
+            elif name in self.takes.required:
+                raise BadValueError(f"{method}: missing required argument {name!r}")
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self._common()
+        d["takes"] = self.takes.to_dict()
+        d["defaults"] = {k: _plain(v) for k, v in self.defaults.items()}
+        d["returns"] = self.returns.to_dict()
+        return d
+
+
+class BlockMeta(Meta):
+    """Description and field order of a block."""
+
+    typeid = "malcolm:core/BlockMeta:1.0"
+
+    def __init__(
+        self,
+        description: str = "",
+        tags: Iterable[str] = (),
+        writeable: bool = True,
+        label: str = "",
+        fields: Iterable[str] = (),
+    ) -> None:
+        super().__init__(description, tags, writeable, label)
+        self.fields = list(fields)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self._common()
+        d["fields"] = list(self.fields)
+        return d
+
+
+def _plain(value: Any) -> Any:
+    """Convert tuples to lists and non-finite floats stay as they are."""
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, float) and math.isnan(value):
+        return value
+    return value
+
+
+plain = _plain

@@ -1,0 +1,171 @@
+"""Process: hosts controllers, finds blocks by mri, publishes changes as deltas."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+from .block import Block
+from .errors import NotFoundError
+from .fields import Change
+
+if TYPE_CHECKING:
+    from malcolm.controllers.base import Controller
+
+log = logging.getLogger(__name__)
+
+Callback = Callable[[Any], None]
+
+
+class Subscription:
+    """A subscriber's path and callback; ``delta`` selects deltas or whole values."""
+
+    def __init__(self, path: Sequence[str], callback: Callback, delta: bool) -> None:
+        self.path = list(path)
+        self.callback = callback
+        self.delta = delta
+
+    def __repr__(self) -> str:
+        return f"<Subscription {'.'.join(self.path)} delta={self.delta}>"
+
+
+def _index(data: Any, path: Sequence[str], where: str) -> Any:
+    for i, key in enumerate(path):
+        if isinstance(data, dict) and key in data:
+            data = data[key]
+        else:
+            raise NotFoundError(f"{where}: no {'.'.join(path[: i + 1])!r}")
+    return data
+
+
+class Process:
+    """A set of blocks served together, with one asyncio loop owning their state.
+
+    Every change a block makes is delivered to the subscribers of any path
+    it touches, as a list of ``[path, value]`` changes relative to the
+    subscribed path (``[[], value]`` replaces it whole).
+    """
+
+    def __init__(self, name: str = "malcolm") -> None:
+        self.name = name
+        self._controllers: dict[str, Controller] = {}
+        self._subs: dict[str, list[Subscription]] = {}
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self.started = False
+
+    # ---- hosting
+    def add_controller(self, controller: Controller) -> None:
+        mri = controller.mri
+        if mri in self._controllers:
+            raise ValueError(f"a block with mri {mri!r} already exists in {self.name}")
+        self._controllers[mri] = controller
+        controller.process = self
+        controller.block.set_listener(self._on_changes)
+
+    @property
+    def mris(self) -> list[str]:
+        return list(self._controllers)
+
+    def get_controller(self, mri: str) -> Controller:
+        try:
+            return self._controllers[mri]
+        except KeyError:
+            known = ", ".join(self._controllers) or "none"
+            raise NotFoundError(f"no block {mri!r} (blocks: {known})") from None
+
+    def get_block(self, mri: str) -> Block:
+        return self.get_controller(mri).block
+
+    async def start(self) -> None:
+        """Bind to the running loop and bring every controller to its ready state."""
+        self.loop = asyncio.get_running_loop()
+        self.started = True
+        for controller in list(self._controllers.values()):
+            await controller.start()
+
+    async def stop(self) -> None:
+        for controller in list(self._controllers.values()):
+            await controller.stop()
+        self.started = False
+
+    # ---- reading and writing by path
+    def get(self, path: Sequence[str]) -> Any:
+        """The plain data at a path such as ``["COUNTER", "counter", "value"]``."""
+        if not path:
+            raise NotFoundError("empty path")
+        block = self.get_block(path[0])
+        if len(path) == 1:
+            return block.to_dict()
+        if path[1] == "meta":
+            return _index(block.meta.to_dict(), path[2:], path[0])
+        fld = block[path[1]]
+        return _index(fld.to_dict(), path[2:], f"{path[0]}.{path[1]}")
+
+    async def put(self, path: Sequence[str], value: Any) -> None:
+        """Put to ``[mri, attribute]`` or ``[mri, attribute, "value"]``."""
+        mri, name = self._field_path(path, "put")
+        await self.get_controller(mri).put(name, value)
+
+    async def post(self, path: Sequence[str], params: dict[str, Any] | None = None):
+        """Call a method at ``[mri, method]``; returns what it returns."""
+        mri, name = self._field_path(path, "post")
+        return await self.get_controller(mri).call(name, params or {})
+
+    @staticmethod
+    def _field_path(path: Sequence[str], what: str) -> tuple[str, str]:
+        path = list(path)
+        if len(path) == 3 and path[2] == "value" and what == "put":
+            path = path[:2]
+        if len(path) != 2:
+            raise NotFoundError(f"{what} needs a path [mri, field], got {path}")
+        return path[0], path[1]
+
+    # ---- subscriptions
+    def subscribe(
+        self, path: Sequence[str], callback: Callback, delta: bool = True
+    ) -> Subscription:
+        """Subscribe; the callback gets the current value at once, then changes."""
+        value = self.get(path)
+        sub = Subscription(path, callback, delta)
+        self._subs.setdefault(sub.path[0], []).append(sub)
+        self._deliver(sub, [[[], value]] if delta else value)
+        return sub
+
+    def unsubscribe(self, sub: Subscription) -> None:
+        subs = self._subs.get(sub.path[0], [])
+        if sub in subs:
+            subs.remove(sub)
+
+    def _deliver(self, sub: Subscription, payload: Any) -> None:
+        try:
+            sub.callback(payload)
+        except Exception:
+            log.exception("subscriber %r raised", sub)
+
+    def _on_changes(self, mri: str, changes: list[Change]) -> None:
+        subs = self._subs.get(mri)
+        if not subs:
+            return
+        for sub in list(subs):
+            rest = sub.path[1:]
+            n = len(rest)
+            out: list[Change] = []
+            for change in changes:
+                p = change[0]
+                if p[:n] == rest:
+                    out.append([p[n:], *change[1:]])
+                elif rest[: len(p)] == p:
+                    try:
+                        out.append([[], self.get(sub.path)])
+                    except NotFoundError:
+                        out.append([[]])
+            if out:
+                if sub.delta:
+                    self._deliver(sub, out)
+                else:
+                    try:
+                        self._deliver(sub, self.get(sub.path))
+                    except NotFoundError:
+                        self._deliver(sub, None)

@@ -1,0 +1,46 @@
+"""TimeStamp (the EPICS time_t structure)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+
+@dataclass(frozen=True)
+class TimeStamp:
+    """Seconds and nanoseconds past the POSIX epoch, plus a user tag."""
+
+    secondsPastEpoch: int = 0  # noqa: N815 (wire name)
+    nanoseconds: int = 0
+    userTag: int = 0  # noqa: N815
+
+    typeid: ClassVar[str] = "time_t"
+    zero: ClassVar[TimeStamp]
+
+    @classmethod
+    def now(cls) -> TimeStamp:
+        ns = time.time_ns()
+        return cls(ns // 1_000_000_000, ns % 1_000_000_000)
+
+    def to_time(self) -> float:
+        return self.secondsPastEpoch + self.nanoseconds * 1e-9
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "typeid": self.typeid,
+            "secondsPastEpoch": self.secondsPastEpoch,
+            "nanoseconds": self.nanoseconds,
+            "userTag": self.userTag,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TimeStamp:
+        return cls(
+            int(d.get("secondsPastEpoch", 0)),
+            int(d.get("nanoseconds", 0)),
+            int(d.get("userTag", 0)),
+        )
+
+
+TimeStamp.zero = TimeStamp()

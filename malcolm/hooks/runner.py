@@ -1,0 +1,124 @@
+"""The phase runner: every part function registered for a phase runs concurrently.
+
+The phase ends when all have returned. The first exception cancels the
+siblings and is raised as PhaseError naming the part and the phase; a
+timeout cancels all of them and raises PhaseTimeoutError naming the parts
+still running.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import inspect
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from malcolm.core import MalcolmError, PhaseTimeoutError
+
+from .task import BlockingTask, Task
+
+_POSITIONAL = (
+    inspect.Parameter.POSITIONAL_ONLY,
+    inspect.Parameter.POSITIONAL_OR_KEYWORD,
+)
+
+
+@dataclass(frozen=True)
+class Hook:
+    """One part function registered for one phase."""
+
+    part: str
+    phase: str
+    func: Callable[..., Any]
+    is_async: bool
+    nargs: int  # how many of (task, device) it takes
+
+    @classmethod
+    def make(cls, part: str, phase: str, func: Callable[..., Any]) -> Hook:
+        params = inspect.signature(func).parameters.values()
+        if any(p.kind == inspect.Parameter.VAR_POSITIONAL for p in params):
+            nargs = 2
+        else:
+            nargs = min(2, sum(1 for p in params if p.kind in _POSITIONAL))
+        return cls(part, phase, func, inspect.iscoroutinefunction(func), nargs)
+
+
+class PhaseError(MalcolmError):
+    """A part function raised during a phase."""
+
+    def __init__(self, phase: str, part: str, cause: BaseException) -> None:
+        self.phase = phase
+        self.part = part
+        self.cause = cause
+        text = str(cause) or type(cause).__name__
+        if not isinstance(cause, MalcolmError):
+            text = f"{type(cause).__name__}: {text}"
+        super().__init__(f"{phase} phase: part {part!r} failed: {text}")
+
+
+_executor: concurrent.futures.ThreadPoolExecutor | None = None
+
+
+def executor() -> concurrent.futures.ThreadPoolExecutor:
+    """The worker threads plain ``def`` hook functions run in."""
+    global _executor
+    if _executor is None:
+        _executor = concurrent.futures.ThreadPoolExecutor(
+            max_workers=64, thread_name_prefix="malcolm-hook"
+        )
+    return _executor
+
+
+async def run_phase(
+    phase: str,
+    hooks: Sequence[Hook],
+    tasks: Mapping[str, Task],
+    device: Any,
+    timeout: float | None = None,
+) -> dict[str, Any]:
+    """Run ``hooks`` concurrently; return ``{part: returned value}``."""
+    if not hooks:
+        return {}
+    loop = asyncio.get_running_loop()
+    running: dict[asyncio.Future[Any], Hook] = {}
+    blocking: list[BlockingTask] = []
+    for hook in hooks:
+        task = tasks[hook.part]
+        if hook.is_async:
+            args = (task, device)[: hook.nargs]
+            fut = asyncio.ensure_future(hook.func(*args))
+        else:
+            btask = BlockingTask(task)
+            blocking.append(btask)
+            args = (btask, device)[: hook.nargs]
+            fut = loop.run_in_executor(executor(), hook.func, *args)
+        running[fut] = hook
+
+    def cancel_all() -> None:
+        for fut in running:
+            fut.cancel()
+        for btask in blocking:
+            btask.cancel()
+
+    try:
+        done, pending = await asyncio.wait(
+            running, timeout=timeout, return_when=asyncio.FIRST_EXCEPTION
+        )
+    except asyncio.CancelledError:
+        cancel_all()
+        raise
+    for fut in done:
+        if not fut.cancelled() and fut.exception() is not None:
+            cancel_all()
+            raise PhaseError(phase, running[fut].part, fut.exception()) from (
+                fut.exception()
+            )
+    if pending:
+        cancel_all()
+        parts = ", ".join(sorted({running[f].part for f in pending}))
+        raise PhaseTimeoutError(
+            f"{phase} phase timed out after {timeout} s waiting for part(s) {parts}"
+        )
+    return {running[f].part: f.result() for f in done}

@@ -1,0 +1,98 @@
+"""Views of blocks that parts hold: ``self.child.xml`` names an attribute of a child.
+
+A view does not own data: it names ``(mri, field)`` and reads through the
+process. ``view.xml.put(v)`` works from a worker thread (plain ``def`` hook
+functions) and is awaitable as ``await view.xml.put_async(v)`` on the loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from malcolm.core import Process
+
+
+def _in_loop(process: Process) -> bool:
+    try:
+        return asyncio.get_running_loop() is process.loop
+    except RuntimeError:
+        return False
+
+
+class FieldView:
+    """One field of a block, seen through a process."""
+
+    def __init__(self, process: Process, mri: str, name: str) -> None:
+        self.process = process
+        self.mri = mri
+        self.name = name
+
+    @property
+    def path(self) -> list[str]:
+        return [self.mri, self.name]
+
+    @property
+    def value(self) -> Any:
+        return self.process.get_block(self.mri).attribute(self.name).value
+
+    def put(self, value: Any, timeout: float | None = None) -> None:
+        """Blocking put from a worker thread (waits for completion)."""
+        if _in_loop(self.process):
+            raise RuntimeError(
+                f"{self.mri}.{self.name}.put() blocks: use 'await ...put_async()'"
+                " or task.put() on the event loop"
+            )
+        assert self.process.loop is not None
+        fut = asyncio.run_coroutine_threadsafe(
+            asyncio.wait_for(self.process.put(self.path, value), timeout),
+            self.process.loop,
+        )
+        fut.result()
+
+    async def put_async(self, value: Any) -> None:
+        await self.process.put(self.path, value)
+
+    def __call__(self, **params: Any) -> Any:
+        """Call a method from a worker thread."""
+        assert self.process.loop is not None
+        fut = asyncio.run_coroutine_threadsafe(
+            self.process.post(self.path, params), self.process.loop
+        )
+        return fut.result()
+
+    def __hash__(self) -> int:
+        return hash((self.mri, self.name))
+
+    def __eq__(self, other: object) -> bool:
+        return (
+            isinstance(other, FieldView)
+            and (other.mri, other.name) == (self.mri, self.name)
+            and other.process is self.process
+        )
+
+    def __repr__(self) -> str:
+        return f"<{self.mri}.{self.name}>"
+
+
+class BlockView:
+    """A block seen through a process: ``view.field`` gives a FieldView."""
+
+    def __init__(self, process: Process, mri: str) -> None:
+        self._process = process
+        self.mri = mri
+
+    def __getattr__(self, name: str) -> FieldView:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        block = self._process.get_block(self.mri)
+        if name not in block:
+            raise AttributeError(f"{self.mri} has no field {name!r}")
+        return FieldView(self._process, self.mri, name)
+
+    def __getitem__(self, name: str) -> FieldView:
+        return self.__getattr__(name)
+
+    def __repr__(self) -> str:
+        return f"<BlockView {self.mri}>"

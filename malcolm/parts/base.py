@@ -1,0 +1,129 @@
+"""Part: a piece of a block that adds fields and hooks into phases."""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from malcolm.core import Attribute, MapMeta, Meta, Method, MethodMeta
+from malcolm.fsm import phases_of
+from malcolm.hooks import BlockView
+
+from .signature import method_meta_from
+
+if TYPE_CHECKING:
+    from malcolm.controllers.base import Controller
+
+
+class PartRegistrar:
+    """What a part's ``setup`` uses to add fields to its controller's block."""
+
+    def __init__(self, controller: Controller, part: Part) -> None:
+        self.controller = controller
+        self.part = part
+
+    @property
+    def mri(self) -> str:
+        return self.controller.mri
+
+    def add_attribute(
+        self,
+        name: str,
+        meta: Meta,
+        value: Any = None,
+        put: Callable[[Any], Any] | None = None,
+    ) -> Attribute:
+        """Add an attribute; ``put`` (if given) handles external puts."""
+        if put is not None:
+            meta.writeable = True
+        attr = Attribute(name, meta, value, put_handler=put)
+        self.controller.block.add(attr)
+        return attr
+
+    def add_method(
+        self,
+        func: Callable[..., Any],
+        name: str | None = None,
+        meta: MethodMeta | None = None,
+        returns: MapMeta | None = None,
+    ) -> Method:
+        """Add a method; its takes are read from the function's signature."""
+        name = name or func.__name__
+        meta = meta or method_meta_from(func, returns)
+        method = Method(name, meta, func)
+        self.controller.block.add(method)
+        return method
+
+    def add_configure_arg(
+        self, name: str, meta: Meta, default: Any = None, required: bool = False
+    ) -> None:
+        """Add an argument to configure() and validate() (runnable blocks)."""
+        self.controller.add_configure_arg(name, meta, default, required)
+
+
+class Part:
+    """A named piece of a block.
+
+    Subclasses add fields in ``setup`` and mark methods with phase decorators
+    (``@RunnableDevice.Configure``) to run in those phases.
+    """
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def setup(self, registrar: PartRegistrar) -> None:
+        """Add attributes, methods and configure arguments."""
+
+    def hook_functions(self) -> list[tuple[str, Callable[..., Any]]]:
+        """``(phase, bound function)`` for every phase-decorated method."""
+        out = []
+        seen = set()
+        for klass in type(self).__mro__:
+            for attr_name, value in vars(klass).items():
+                if attr_name in seen:
+                    continue
+                seen.add(attr_name)
+                for phase in phases_of(value):
+                    out.append((phase, getattr(self, attr_name)))
+        return out
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name}>"
+
+
+class Controls:
+    """Class decorator naming the kind of block a ChildPart controls."""
+
+    def __init__(self, block_type: Any) -> None:
+        self.block_type = block_type
+
+    def __call__(self, cls: type) -> type:
+        cls.controls = self.block_type  # type: ignore[attr-defined]
+        return cls
+
+
+class ChildPart(Part):
+    """A part that controls a child block, reachable as ``self.child``."""
+
+    controls: Any = None
+
+    def __init__(self, name: str, mri: str) -> None:
+        super().__init__(name)
+        self.mri = mri
+        self._controller: Controller | None = None
+
+    def setup(self, registrar: PartRegistrar) -> None:
+        self._controller = registrar.controller
+
+    @property
+    def child(self) -> BlockView:
+        assert self._controller is not None and self._controller.process is not None
+        return BlockView(self._controller.process, self.mri)
+
+
+ChildControllerPart = ChildPart
+
+
+def is_async(func: Callable[..., Any]) -> bool:
+    return inspect.iscoroutinefunction(func)
