@@ -40,3 +40,13 @@ __all__ = [
     "Process", "StringArrayMeta", "StringMeta", "Subscription", "TableMeta",
     "TimeStamp", "WaitTimeoutError",
 ]  # fmt: skip
+
+
+def __getattr__(name: str) -> object:
+    # The design document imports these from malcolm.core; they live in
+    # malcolm.parts (which imports malcolm.core), so load them lazily.
+    if name in ("ChildControllerPart", "Controls"):
+        from malcolm import parts
+
+        return getattr(parts, name)
+    raise AttributeError(f"module 'malcolm.core' has no attribute {name!r}")

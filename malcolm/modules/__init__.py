@@ -1,0 +1,1 @@
+"""Block types by hardware module, as the design document imports them."""
