@@ -1,0 +1,342 @@
+"""Parse a definition document into an ordered list of sections.
+
+A definition is a YAML mapping whose keys name section types (``ca.Double``,
+``parts.PalettePart``...) and whose values are the section's parameters. Unlike
+a stock YAML load, the same key may appear many times (a saved design has one
+``parts.PalettePart`` per block), so the document is composed into nodes and
+read pair by pair, which also tells every section and value its line.
+
+The language writes parameter references unquoted, as in ``pv:
+{prefix}:Exposure`` or ``prefix: {pvprefix}``. In YAML the first is a syntax
+error and the second a flow mapping ``{pvprefix: null}``. Both are read as
+the text ``{name}...``:
+
+- a flow mapping written exactly ``{name}`` (one key, no value) becomes the
+  string ``"{name}"``, wherever it appears;
+- if the document does not parse, every value that starts with ``{name}``
+  (after ``key:`` or ``-``) is quoted, line by line, and the document is
+  parsed again. Line numbers are unchanged by this.
+
+Scalars follow YAML 1.1 as PyYAML reads them (``visible: Yes`` is True).
+Anchors and aliases are not part of the language.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Collection
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+
+from .errors import ConfigError, Problems
+
+ValuePath = tuple[Any, ...]
+
+_IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
+_COMPONENT = r"[A-Za-z0-9_][A-Za-z0-9_-]*"
+#: ``namespace.Name.Dotted`` with an optional ``:attribute`` (import paths).
+KIND_RE = re.compile(rf"{_IDENT}(?:\.{_COMPONENT})*(?::{_IDENT}(?:\.{_IDENT})*)?")
+
+_MAP_TAG = "tag:yaml.org,2002:map"
+_SEQ_TAG = "tag:yaml.org,2002:seq"
+_NULL_TAG = "tag:yaml.org,2002:null"
+_STR_TAG = "tag:yaml.org,2002:str"
+
+
+@dataclass(frozen=True)
+class Section:
+    """One top-level entry of a definition, such as ``ca.Double: {...}``."""
+
+    kind: str  #: the whole key, e.g. "block.ADCore.PositionPlugin"
+    namespace: str  #: text before the first dot, e.g. "block"
+    name: str  #: text after the first dot, e.g. "ADCore.PositionPlugin"
+    params: dict[str, Any]
+    file: str
+    line: int  #: line of the section's key
+    param_lines: dict[str, int] = field(default_factory=dict)
+    #: line of every value, keyed by its path below ``params``:
+    #: ``("value", 0, "Phase1Time")`` for ``params["value"][0]["Phase1Time"]``
+    value_lines: dict[ValuePath, int] = field(default_factory=dict)
+
+    def line_of(self, path: ValuePath = ()) -> int:
+        """The line of the value at ``path``, or of its nearest parent."""
+        path = tuple(path)
+        while path:
+            if path in self.value_lines:
+                return self.value_lines[path]
+            if len(path) == 1 and path[0] in self.param_lines:
+                return self.param_lines[path[0]]
+            path = path[:-1]
+        return self.line
+
+
+def split_kind(kind: str) -> tuple[str, str]:
+    """``"block.ADCore.PositionPlugin"`` -> ``("block", "ADCore.PositionPlugin")``."""
+    namespace, _, name = kind.partition(".")
+    return namespace, name
+
+
+def load_sections(
+    path: str | os.PathLike[str], *, value_kinds: Collection[str] = ()
+) -> list[Section]:
+    """Read a file and parse it with :func:`parse_sections`."""
+    file = str(path)
+    try:
+        text = Path(path).read_bytes().decode("utf-8")
+    except OSError as error:
+        raise ConfigError.at(file, 1, f"cannot read file: {error.strerror}") from None
+    except UnicodeDecodeError as error:
+        raise ConfigError.at(file, 1, f"file is not UTF-8: {error.reason}") from None
+    return parse_sections(text, file, value_kinds=value_kinds)
+
+
+def parse_sections(
+    text: str, file: str = "<string>", *, value_kinds: Collection[str] = ()
+) -> list[Section]:
+    """Parse a document into its sections, in order, repeated keys kept.
+
+    Each section's body must be a mapping of parameters, or empty (no
+    parameters), except for the kinds in ``value_kinds``, whose body may be
+    any value and is stored as ``params["value"]``.
+    Raises :class:`ConfigError` listing every problem found.
+    """
+    root, composed = _compose(text, file)
+    if root is None:
+        return []
+    problems = Problems()
+    if not isinstance(root, MappingNode) or root.tag != _MAP_TAG:
+        problems.add(file, _line(root), "a definition must be a mapping of sections")
+        problems.raise_if_any()
+    _unbrace(root, composed)
+    reader = _Reader(file, problems)
+    sections = [
+        section
+        for key, body in root.value
+        if (section := reader.section(key, body, value_kinds)) is not None
+    ]
+    problems.problems.sort(key=lambda p: p.line)
+    problems.raise_if_any()
+    return sections
+
+
+def _line(node: Node) -> int:
+    return node.start_mark.line + 1
+
+
+class _Loader(yaml.SafeLoader):
+    """A SafeLoader that refuses aliases (``*name``)."""
+
+    def compose_node(self, parent: Node | None, index: Any) -> Node | None:
+        if self.check_event(yaml.AliasEvent):
+            mark = self.peek_event().start_mark
+            raise yaml.composer.ComposerError(
+                None, None, "aliases (*name) are not supported", mark
+            )
+        return super().compose_node(parent, index)
+
+
+def _compose_text(text: str) -> Node | None:
+    loader = _Loader(text)
+    try:
+        return loader.get_single_node()
+    finally:
+        loader.dispose()
+
+
+def _compose(text: str, file: str) -> tuple[Node | None, str]:
+    """Compose ``text``, quoting unquoted ``{name}...`` values if needed."""
+    try:
+        return _compose_text(text), text
+    except (yaml.YAMLError, RecursionError):
+        pass
+    quoted = quote_references(text)
+    try:
+        return _compose_text(quoted), quoted
+    except yaml.MarkedYAMLError as error:
+        mark = error.problem_mark or error.context_mark
+        line = mark.line + 1 if mark else 1
+        message = " ".join(m for m in (error.context, error.problem) if m)
+        raise ConfigError.at(file, line, f"YAML error: {message}") from None
+    except yaml.YAMLError as error:
+        raise ConfigError.at(file, 1, f"YAML error: {error}") from None
+    except RecursionError:
+        raise ConfigError.at(file, 1, "document is nested too deeply") from None
+
+
+# ``key: {name}...`` or ``- {name}...``: the value is group "value".
+_REF_LINE = re.compile(
+    rf"""(?P<lead>[ ]*(?:-[ ]+)*
+        (?:(?:[^\s#'"{{}}\[\],&*!|>%@`?-][^#]*?|"[^"]*"|'[^']*')[ ]*:[ ]+)?)
+        (?P<value>\{{{_IDENT}\}}.*?)
+        (?P<trail>[ \t]+\#.*)?[ \t]*""",
+    re.VERBOSE,
+)
+# A line whose value is a block scalar (``key: |`` or ``- >-``).
+_BLOCK_SCALAR = re.compile(
+    r"""(?P<dashes>[ ]*(?:-[ ]+)*)(?P<key>[^#]*?:[ ]+)?
+        [|>][-+1-9]{0,2}[ \t]*(?:\#.*)?""",
+    re.VERBOSE,
+)
+
+
+def quote_references(text: str) -> str:
+    """Single-quote every value that starts with an unquoted ``{name}``.
+
+    ``pv: {prefix}:Exposure  # c`` becomes ``pv: '{prefix}:Exposure'  # c``.
+    Block scalars are left alone; no line is added or removed.
+    """
+    out: list[str] = []
+    block_indent: int | None = None
+    for line in text.split("\n"):
+        body = line.rstrip("\r")
+        indent = len(body) - len(body.lstrip(" "))
+        if block_indent is not None:
+            if not body.strip() or indent > block_indent:
+                out.append(line)
+                continue
+            block_indent = None
+        if match := _BLOCK_SCALAR.fullmatch(body):
+            dashes = match["dashes"]
+            block_indent = len(dashes) if match["key"] else dashes.rfind("-")
+            out.append(line)
+        elif match := _REF_LINE.fullmatch(body):
+            value = "'" + match["value"].replace("'", "''") + "'"
+            out.append(match["lead"] + value + (match["trail"] or ""))
+        else:
+            out.append(line)
+    return "\n".join(out)
+
+
+_BRACED = re.compile(rf"\{{\s*{_IDENT}\s*\}}")
+
+
+def _unbrace(node: Node, text: str) -> None:
+    """Turn flow mappings written ``{name}`` into the scalar text ``{name}``."""
+    if isinstance(node, SequenceNode):
+        node.value = [_unbraced(item, text) for item in node.value]
+    elif isinstance(node, MappingNode):
+        node.value = [(_unbraced(k, text), _unbraced(v, text)) for k, v in node.value]
+
+
+def _unbraced(node: Node, text: str) -> Node:
+    if (
+        isinstance(node, MappingNode)
+        and node.flow_style
+        and len(node.value) == 1
+        and _BRACED.fullmatch(text[node.start_mark.index : node.end_mark.index])
+    ):
+        key, value = node.value[0]
+        if isinstance(key, ScalarNode) and value.tag == _NULL_TAG:
+            return ScalarNode(
+                _STR_TAG, "{" + key.value + "}", node.start_mark, node.end_mark, "'"
+            )
+    _unbrace(node, text)
+    return node
+
+
+class _Reader:
+    """Turns composed nodes into sections and plain Python values."""
+
+    def __init__(self, file: str, problems: Problems) -> None:
+        self.file = file
+        self.problems = problems
+        self.constructor = yaml.SafeLoader("")
+
+    def section(
+        self, key: Node, body: Node, value_kinds: Collection[str]
+    ) -> Section | None:
+        if not isinstance(key, ScalarNode) or not isinstance(key.value, str):
+            self.problems.add(self.file, _line(key), "section name must be text")
+            return None
+        kind = key.value
+        if not KIND_RE.fullmatch(kind):
+            self.problems.add(
+                self.file,
+                _line(key),
+                f"invalid section name '{kind}' (expected namespace.Name)",
+            )
+            return None
+        namespace, name = split_kind(kind)
+        params: dict[str, Any] = {}
+        param_lines: dict[str, int] = {}
+        value_lines: dict[ValuePath, int] = {}
+        if isinstance(body, MappingNode) and body.tag == _MAP_TAG:
+            for pkey, pvalue in body.value:
+                if not isinstance(pkey, ScalarNode):
+                    self.problems.add(
+                        self.file, _line(pkey), "parameter name must be text"
+                    )
+                    continue
+                pname = pkey.value
+                if pname in params:
+                    self.problems.add(
+                        self.file,
+                        _line(pkey),
+                        f"duplicate parameter '{pname}' in {kind} "
+                        f"(first given at line {param_lines[pname]})",
+                    )
+                    continue
+                param_lines[pname] = _line(pkey)
+                params[pname] = self.value(pvalue, (pname,), value_lines)
+        elif kind in value_kinds:
+            params["value"] = self.value(body, ("value",), value_lines)
+            param_lines["value"] = _line(body)
+        elif not (isinstance(body, ScalarNode) and body.tag == _NULL_TAG):
+            self.problems.add(
+                self.file,
+                _line(body),
+                f"body of {kind} must be a mapping of parameters",
+            )
+        return Section(
+            kind,
+            namespace,
+            name,
+            params,
+            self.file,
+            _line(key),
+            param_lines,
+            value_lines,
+        )
+
+    def value(self, node: Node, path: ValuePath, lines: dict[ValuePath, int]) -> Any:
+        lines[path] = _line(node)
+        if isinstance(node, ScalarNode):
+            try:
+                return self.constructor.construct_object(node, deep=True)
+            except Exception as error:  # a bad scalar raises many kinds
+                message = getattr(error, "problem", None) or str(error)
+                self.problems.add(self.file, _line(node), f"bad value: {message}")
+                return None
+        if isinstance(node, SequenceNode) and node.tag == _SEQ_TAG:
+            return [
+                self.value(item, (*path, i), lines) for i, item in enumerate(node.value)
+            ]
+        if isinstance(node, MappingNode) and node.tag == _MAP_TAG:
+            result: dict[Any, Any] = {}
+            key_lines: dict[Any, int] = {}
+            for key_node, value_node in node.value:
+                key = self.value(key_node, (*path, "<key>"), {})
+                try:
+                    duplicate = key in result
+                except TypeError:
+                    self.problems.add(
+                        self.file, _line(key_node), "mapping key must be a plain value"
+                    )
+                    continue
+                if duplicate:
+                    self.problems.add(
+                        self.file,
+                        _line(key_node),
+                        f"duplicate key '{key}' (first given at line {key_lines[key]})",
+                    )
+                    continue
+                key_lines[key] = _line(key_node)
+                result[key] = self.value(value_node, (*path, key), lines)
+            return result
+        self.problems.add(self.file, _line(node), f"unsupported YAML tag {node.tag}")
+        return None
