@@ -196,7 +196,13 @@ class RunnableController(Controller):
             self.completed.set_value(0)
             self.configured.set_value(self.next_configured(0))
         elif phase == "PreRun":
-            self._progress = {}
+            # every part with a hook in the run's phases reports progress
+            run = self.model.transitions_for("done", "Running")
+            phases = {ph for t in run for ph in t.phases}
+            start = self.completed.value
+            self._progress = {
+                h.part: start for ph in phases for h in self.hooks.get(ph, ())
+            }
             self.device.stepsToDo = self.configured.value - self.completed.value
         elif phase == "PostRunArmed":
             self.configured.set_value(self.next_configured(self.completed.value))
@@ -213,6 +219,8 @@ class RunnableController(Controller):
 
     def _on_progress(self, part: str, steps: int) -> None:
         if self.current != "Running":
+            return
+        if part not in self._progress:
             return
         self._progress[part] = steps
         done = min(self._progress.values())
