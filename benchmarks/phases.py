@@ -1,0 +1,174 @@
+"""Benchmarks of the controller's phase machinery, as ratios to the raw libraries.
+
+    .venv/bin/python -m benchmarks.phases
+
+For each case it times malcolm and a baseline doing the same work with the
+raw libraries on the same run (asyncio.gather for the concurrent hooks, a
+bare ``transitions`` machine for the state moves), and prints a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import statistics
+import time
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+from transitions import Machine
+
+from malcolm.controllers.runnable import RunnableController
+from malcolm.core import Process
+from malcolm.fsm import RunnableDevice, load_model
+from malcolm.parts import Part
+
+PHASES = ("Validate", "ReportStatus", "PreConfigure", "Configure", "PostConfigure")
+RUN_PHASES = ("PreRun", "Run", "PostRunArmed")
+
+
+class NoOpPart(Part):
+    """A part with an empty async hook in every configure and run phase."""
+
+    @RunnableDevice.Validate
+    @RunnableDevice.ReportStatus
+    @RunnableDevice.PreConfigure
+    @RunnableDevice.Configure
+    @RunnableDevice.PostConfigure
+    @RunnableDevice.PreRun
+    @RunnableDevice.Run
+    @RunnableDevice.PostRunArmed
+    @RunnableDevice.PostRunReady
+    async def hook(self, task, device):
+        return None
+
+
+def generator(size: int) -> dict:
+    return {
+        "typeid": "scanpointgenerator:generator/CompoundGenerator:1.0",
+        "generators": [
+            {
+                "typeid": "scanpointgenerator:generator/LineGenerator:1.0",
+                "axes": ["x"],
+                "units": ["mm"],
+                "start": [0],
+                "stop": [1],
+                "size": size,
+                "alternate": False,
+            }
+        ],
+        "excluders": [],
+        "mutators": [],
+        "duration": 0.0,
+    }
+
+
+async def best_of(repeats: int, fn: Callable[[], Awaitable[None]]) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        await fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def raw_machine() -> object:
+    """A bare transitions machine with the runnable model's moves."""
+    model = load_model("runnable_device")
+
+    class M:
+        def scan_complete(self) -> bool:
+            return False
+
+        def is_paused(self) -> bool:
+            return False
+
+    m = M()
+    Machine(
+        model=m,
+        states=list(model.states),
+        transitions=[
+            {"trigger": t.trigger, "source": t.source, "dest": t.dest}
+            for t in model.transitions
+        ],
+        initial="Armed",
+        auto_transitions=False,
+    )
+    return m
+
+
+async def configure_case(n_parts: int, repeats: int) -> tuple[float, float]:
+    process = Process()
+    ctrl = RunnableController("BENCH", [NoOpPart(f"p{i}") for i in range(n_parts)])
+    process.add_controller(ctrl)
+    await process.start()
+    gen = generator(10)
+
+    async def malcolm_configure() -> None:
+        await process.post(["BENCH", "configure"], {"generator": gen})
+        await process.post(["BENCH", "reset"])
+
+    parts = [NoOpPart(f"p{i}") for i in range(n_parts)]
+
+    async def raw_configure() -> None:
+        for _ in PHASES:
+            await asyncio.gather(*(p.hook(None, None) for p in parts))
+
+    return (
+        await best_of(repeats, malcolm_configure),
+        await best_of(repeats, raw_configure),
+    )
+
+
+async def run_cycles_case(steps: int) -> tuple[float, float]:
+    process = Process()
+    ctrl = RunnableController("BENCH", [NoOpPart("p0")])
+    process.add_controller(ctrl)
+    await process.start()
+    await process.post(
+        ["BENCH", "configure"], {"generator": generator(steps), "axesToMove": []}
+    )
+    t0 = time.perf_counter()
+    while ctrl.block.state.value != "Finished":
+        await process.post(["BENCH", "run"])
+    malcolm_rate = steps / (time.perf_counter() - t0)
+
+    m: Any = raw_machine()
+    part = NoOpPart("raw")
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        m.trigger("run")
+        for _ in RUN_PHASES:
+            await asyncio.gather(part.hook(None, None))
+        m.trigger("done")  # Running -> PostRun
+        m.trigger("done")  # PostRun -> Finished (first done transition)
+        m.state = "Armed"
+    raw_rate = steps / (time.perf_counter() - t0)
+    return malcolm_rate, raw_rate
+
+
+async def main(repeats: int, steps: int) -> None:
+    rows = []
+    for n in (1, 10, 100):
+        mal, raw = await configure_case(n, repeats)
+        rows.append(
+            (f"configure, {n} no-op parts (ms)", mal * 1e3, raw * 1e3, mal / raw)
+        )
+    mal_rate, raw_rate = await run_cycles_case(steps)
+    rows.append(
+        (f"run cycles/s, 1 step/run x {steps}", mal_rate, raw_rate, raw_rate / mal_rate)
+    )
+    per_phase = rows[0][1] / (len(PHASES) + 2)
+    print(f"{'case':<36} {'malcolm':>10} {'raw':>10} {'ratio':>8}")
+    for name, mal, raw, ratio in rows:
+        print(f"{name:<36} {mal:>10.3f} {raw:>10.3f} {ratio:>8.1f}")
+    print(f"(ratio = malcolm cost / raw cost; per-phase overhead ~{per_phase:.3f} ms"
+          " with 1 part, configure + reset)")  # fmt: skip
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=20)
+    parser.add_argument("--steps", type=int, default=1000)
+    args = parser.parse_args()
+    asyncio.run(main(args.repeats, args.steps))
