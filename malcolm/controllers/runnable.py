@@ -25,7 +25,7 @@ from malcolm.core import (
 from malcolm.scan import ScanPoints, scan_points
 from malcolm.scan.errors import GeneratorError
 
-from .base import Controller
+from .manager import ManagerController
 
 MAX_VALIDATE_ROUNDS = 10
 
@@ -47,7 +47,7 @@ class GeneratorMeta(Meta):
         return value
 
 
-class RunnableController(Controller):
+class RunnableController(ManagerController):
     """Interprets the ``runnable_device`` model (and models that extend it)."""
 
     model_name = "runnable_device"
