@@ -189,5 +189,6 @@ def resolve_params(
                 f"{describe_type(param.type)}, not {value!r}",
             )
         resolved[param.name] = value
+    problems.problems.sort(key=lambda p: p.line)
     problems.raise_if_any()
     return resolved
