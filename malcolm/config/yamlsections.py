@@ -162,6 +162,9 @@ def _compose(text: str, file: str) -> tuple[Node | None, str]:
         line = mark.line + 1 if mark else 1
         message = " ".join(m for m in (error.context, error.problem) if m)
         raise ConfigError.at(file, line, f"YAML error: {message}") from None
+    except yaml.reader.ReaderError as error:
+        line = text.count("\n", 0, error.position) + 1
+        raise ConfigError.at(file, line, f"YAML error: {error.reason}") from None
     except yaml.YAMLError as error:
         raise ConfigError.at(file, 1, f"YAML error: {error}") from None
     except RecursionError:

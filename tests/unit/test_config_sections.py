@@ -203,6 +203,8 @@ def test_empty_document_has_no_sections():
         ("ca.Double:\n  x: !!set {a, b}\n", 2, "unsupported YAML tag"),
         ("ca.Double:\n  x: {a: 1, a: 2}\n", 2, "duplicate key 'a'"),
         ("x y z:\n  a: 1\n", 1, "invalid section name 'x y z'"),
+        ("ca.Double:\n  x: 1\n  y: \x07\n", 3, "special characters"),
+        ("ca.Double:\n  x: 1\n---\nca.Enum:\n", 3, "single document"),
     ],
 )
 def test_errors_name_file_and_line(text, line, message):
