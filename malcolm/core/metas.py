@@ -7,6 +7,7 @@ the Malcolm structure as plain data (``to_dict``).
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, ClassVar
@@ -77,25 +78,49 @@ class Meta:
         return f"{type(self).__name__}({self.description!r})"
 
 
+FLOAT32_MAX = 3.4028234663852886e38
+
+
+def _is_numpy(value: Any) -> bool:
+    return hasattr(value, "dtype") and hasattr(value, "item")
+
+
+def _parse_number(dtype: str, text: str) -> int | float:
+    text = text.strip()
+    try:
+        if dtype in FLOAT_DTYPES:
+            return float(text)
+        try:
+            return int(text, 0)
+        except ValueError:
+            pass
+        try:
+            return int(text)  # decimal with leading zeros, e.g. "010"
+        except ValueError:
+            return float(text)  # "5.0" for an integer dtype
+    except ValueError:
+        raise BadValueError(
+            f"expected a number ({dtype}), got {_describe(text)}"
+        ) from None
+
+
 def _number(dtype: str, value: Any) -> int | float:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float)
-        and not (hasattr(value, "dtype") and hasattr(value, "item"))
-    ):
-        if isinstance(value, str):
-            try:
-                value = float(value) if dtype in FLOAT_DTYPES else int(value, 0)
-            except ValueError:
-                raise BadValueError(
-                    f"expected a number ({dtype}), got {_describe(value)}"
-                ) from None
-        else:
+    if _is_numpy(value):
+        if getattr(value, "ndim", 0) != 0 or str(value.dtype) == "bool":
             raise BadValueError(f"expected a number ({dtype}), got {_describe(value)}")
-    if hasattr(value, "item"):
         value = value.item()
+    if isinstance(value, str):
+        value = _parse_number(dtype, value)
+    elif isinstance(value, bool) or not isinstance(value, int | float):
+        raise BadValueError(f"expected a number ({dtype}), got {_describe(value)}")
     if dtype in FLOAT_DTYPES:
-        return float(value)
+        try:
+            value = float(value)
+        except OverflowError:
+            raise BadValueError(f"{value} is out of range for {dtype}") from None
+        if dtype == "float32" and math.isfinite(value) and abs(value) > FLOAT32_MAX:
+            raise BadValueError(f"{value} is out of range for float32")
+        return value
     if isinstance(value, float):
         if not value.is_integer():
             raise BadValueError(f"expected an integer ({dtype}), got {value!r}")
@@ -179,14 +204,14 @@ class BooleanMeta(Meta):
     typeid = "malcolm:core/BooleanMeta:1.0"
 
     def validate(self, value: Any) -> bool:
+        if _is_numpy(value) and getattr(value, "ndim", 0) == 0:
+            value = value.item()
         if isinstance(value, bool):
             return value
-        if hasattr(value, "dtype") and str(value.dtype) == "bool":
-            return bool(value)
         if isinstance(value, int) and value in (0, 1):
             return bool(value)
-        if isinstance(value, str) and value.lower() in _TRUE | _FALSE:
-            return value.lower() in _TRUE
+        if isinstance(value, str) and value.strip().lower() in _TRUE | _FALSE:
+            return value.strip().lower() in _TRUE
         raise BadValueError(f"expected a boolean, got {_describe(value)}")
 
     def default(self) -> bool:
@@ -212,6 +237,8 @@ class ChoiceMeta(Meta):
     def validate(self, value: Any) -> str:
         if isinstance(value, str) and value in self.choices:
             return value
+        if _is_numpy(value) and getattr(value, "ndim", 0) == 0:
+            value = value.item()
         if isinstance(value, int) and not isinstance(value, bool):
             if 0 <= value < len(self.choices):
                 return self.choices[value]
@@ -237,17 +264,25 @@ class ArrayMeta(Meta):
     element: Meta
 
     def validate(self, value: Any) -> tuple[Any, ...]:
-        if value is None:
-            return ()
-        if isinstance(value, str | bytes) or not isinstance(value, Iterable):
-            raise BadValueError(f"expected an array, got {_describe(value)}")
         out = []
-        for i, v in enumerate(value):
+        for i, v in enumerate(self.items(value)):
             try:
                 out.append(self.element.validate(v))
             except BadValueError as e:
                 raise BadValueError(f"[{i}]: {e}") from None
         return tuple(out)
+
+    def items(self, value: Any) -> list[Any]:
+        """The elements of an array value (not yet validated)."""
+        if value is None:
+            return []
+        if (
+            isinstance(value, str | bytes | Mapping)
+            or not isinstance(value, Iterable)
+            or getattr(value, "ndim", 1) == 0
+        ):
+            raise BadValueError(f"expected an array, got {_describe(value)}")
+        return list(value)
 
     def default(self) -> tuple[Any, ...]:
         return ()
@@ -343,40 +378,85 @@ class TableMeta(Meta):
     ) -> None:
         super().__init__(description, tags, writeable, label)
         self.elements = dict(elements)
+        for k, meta in self.elements.items():
+            if not isinstance(meta, ArrayMeta):
+                raise BadValueError(
+                    f"column {k}: a table column needs an array meta, got {meta!r}"
+                )
 
     def validate(self, value: Any) -> dict[str, tuple[Any, ...]]:
+        """Accept columns ``{name: [...]}`` or rows ``[{name: v}, ...]``.
+
+        Errors name the column and the row, e.g. ``row 2, column x: ...``.
+        """
         if value is None:
             return self.default()
-        if isinstance(value, list | tuple):  # rows
-            cols: dict[str, list[Any]] = {k: [] for k in self.elements}
-            for i, row in enumerate(value):
-                if not isinstance(row, Mapping):
-                    raise BadValueError(f"row {i}: expected a mapping of column values")
-                extra = set(row) - set(self.elements)
-                if extra:
-                    raise BadValueError(f"row {i}: unknown column {sorted(extra)[0]!r}")
-                for k, meta in self.elements.items():
-                    cols[k].append(row.get(k, meta.element.default()))
-            value = cols
+        if isinstance(value, list | tuple):
+            return self._validate_rows(value)
         if not isinstance(value, Mapping):
             raise BadValueError(f"expected a table, got {_describe(value)}")
-        extra = set(value) - set(self.elements) - {"typeid"}
-        if extra:
-            raise BadValueError(f"unknown column {sorted(extra)[0]!r}")
-        out: dict[str, tuple[Any, ...]] = {}
-        length = None
-        for k, meta in self.elements.items():
-            try:
-                col = meta.validate(value.get(k, ()))
-            except BadValueError as e:
-                raise BadValueError(f"column {k}{e}") from None
-            if length is None:
-                length = len(col)
-            elif len(col) != length:
+        return self._validate_columns(value)
+
+    def _validate_rows(self, rows: Sequence[Any]) -> dict[str, tuple[Any, ...]]:
+        cols: dict[str, list[Any]] = {k: [] for k in self.elements}
+        for i, row in enumerate(rows):
+            if not isinstance(row, Mapping):
                 raise BadValueError(
-                    f"column {k} has {len(col)} rows, expected {length}"
+                    f"row {i}: expected a mapping of column values,"
+                    f" got {_describe(row)}"
                 )
-            out[k] = col
+            extra = [k for k in row if k not in self.elements]
+            if extra:
+                raise BadValueError(
+                    f"row {i}: unknown column {extra[0]!r}"
+                    f" (columns: {', '.join(self.elements) or 'none'})"
+                )
+            for k, meta in self.elements.items():
+                element = meta.element
+                try:
+                    v = row.get(k)
+                    cols[k].append(
+                        element.default() if v is None else element.validate(v)
+                    )
+                except BadValueError as e:
+                    raise BadValueError(f"row {i}, column {k}: {e}") from None
+        return {k: tuple(v) for k, v in cols.items()}
+
+    def _validate_columns(self, value: Mapping[str, Any]) -> dict[str, tuple[Any, ...]]:
+        extra = [k for k in value if k not in self.elements and k != "typeid"]
+        if extra:
+            raise BadValueError(
+                f"unknown column {extra[0]!r}"
+                f" (columns: {', '.join(self.elements) or 'none'})"
+            )
+        raw: dict[str, list[Any]] = {}
+        for k, meta in self.elements.items():
+            if k in value:
+                try:
+                    raw[k] = meta.items(value[k])
+                except BadValueError as e:
+                    raise BadValueError(f"column {k}: {e}") from None
+        lengths = {k: len(v) for k, v in raw.items()}
+        n = max(lengths.values(), default=0)
+        for k, length in lengths.items():
+            if length != n:
+                longest = next(c for c, m in lengths.items() if m == n)
+                raise BadValueError(
+                    f"column {k} has {length} rows, but column {longest} has {n}"
+                )
+        out: dict[str, tuple[Any, ...]] = {}
+        for k, meta in self.elements.items():
+            element = meta.element
+            if k not in raw:  # a missing column is filled with defaults
+                out[k] = tuple(element.default() for _ in range(n))
+                continue
+            col = []
+            for i, v in enumerate(raw[k]):
+                try:
+                    col.append(element.validate(v))
+                except BadValueError as e:
+                    raise BadValueError(f"row {i}, column {k}: {e}") from None
+            out[k] = tuple(col)
         return out
 
     def default(self) -> dict[str, tuple[Any, ...]]:
@@ -436,14 +516,20 @@ class MethodMeta(Meta):
         self.defaults = dict(defaults or {})
 
     def validate_args(self, method: str, args: Mapping[str, Any]) -> dict[str, Any]:
-        """Check call arguments, apply defaults; errors name ``method.arg``."""
+        """Check call arguments, apply defaults; errors name ``method.arg``.
+
+        An argument given as None counts as not given. Defaults are validated
+        (and so copied) too, so a handler cannot change them by mutation.
+        """
         if not isinstance(args, Mapping):
-            raise BadValueError(f"{method}: arguments must be a mapping")
+            raise BadValueError(
+                f"{method}: arguments must be a mapping, got {_describe(args)}"
+            )
         unknown = [k for k in args if k not in self.takes.elements]
         if unknown:
             takes = ", ".join(self.takes.elements) or "no arguments"
             raise BadValueError(
-                f"{method}: unknown argument {unknown[0]!r} (takes {takes})"
+                f"{method}.{unknown[0]}: unknown argument (takes {takes})"
             )
         out: dict[str, Any] = {}
         for name, meta in self.takes.elements.items():
@@ -453,10 +539,21 @@ class MethodMeta(Meta):
                 except BadValueError as e:
                     raise BadValueError(f"{method}.{name}: {e}") from None
             elif name in self.defaults:
-                out[name] = self.defaults[name]
+                out[name] = self._default(name, meta)
             elif name in self.takes.required:
-                raise BadValueError(f"{method}: missing required argument {name!r}")
+                raise BadValueError(f"{method}.{name}: missing required argument")
         return out
+
+    def _default(self, name: str, meta: Meta) -> Any:
+        default = self.defaults[name]
+        if default is None:
+            return None
+        try:
+            return meta.validate(copy.deepcopy(default))
+        except BadValueError:
+            # a default that its own meta rejects is passed through unchanged,
+            # as the handler's signature asked for it
+            return copy.deepcopy(default)
 
     def to_dict(self) -> dict[str, Any]:
         d = self._common()
@@ -489,13 +586,13 @@ class BlockMeta(Meta):
 
 
 def _plain(value: Any) -> Any:
-    """Convert tuples to lists and non-finite floats stay as they are."""
-    if isinstance(value, tuple):
+    """Plain data for the wire: tuples become lists, numpy values Python ones."""
+    if isinstance(value, tuple | list):
         return [_plain(v) for v in value]
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, float) and math.isnan(value):
-        return value
+    if _is_numpy(value):
+        return _plain(value.tolist()) if getattr(value, "ndim", 0) else value.item()
     return value
 
 
