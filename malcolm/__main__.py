@@ -1,0 +1,5 @@
+"""``python -m malcolm``: the same as the ``malcolm`` command."""
+
+from malcolm.cli import main
+
+raise SystemExit(main())
