@@ -26,6 +26,35 @@ def cmd_points(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_demo(args: argparse.Namespace) -> int:
+    """Serve the built-in demo process (simulated hardware)."""
+    import asyncio
+
+    from malcolm.demo import serve_demo
+
+    try:
+        return asyncio.run(serve_demo(args.scan))
+    except KeyboardInterrupt:
+        print("malcolm demo: stopped", file=sys.stderr)
+        return 0
+    except Exception as e:  # no traceback reaches a user
+        print(f"malcolm demo: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
+
+
+def cmd_graph(args: argparse.Namespace) -> int:
+    """Print a state-machine model as Mermaid or Graphviz DOT text."""
+    from malcolm.fsm import ModelError, load_model
+
+    try:
+        model = load_model(args.model)
+    except ModelError as e:
+        print(str(e), file=sys.stderr)
+        return 1
+    print(model.to_dot() if args.format == "dot" else model.to_mermaid())
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
     parser = argparse.ArgumentParser(
@@ -45,6 +74,28 @@ def build_parser() -> argparse.ArgumentParser:
     )
     points.add_argument("file", metavar="FILE", help="JSON or YAML file")
     points.set_defaults(func=cmd_points)
+
+    demo = commands.add_parser(
+        "demo",
+        help="serve the demo process",
+        description=(
+            "Serve the built-in demo process: HELLO, COUNTER, MOTOR:X, MOTOR:Y, "
+            "DET1, DET2 and SCAN, all simulated."
+        ),
+    )
+    demo.add_argument(
+        "--scan", action="store_true", help="run a demo scan to the end, then exit"
+    )
+    demo.set_defaults(func=cmd_demo)
+
+    graph = commands.add_parser(
+        "graph",
+        help="draw a state-machine model",
+        description="Print MODEL (a name in models/ or a YAML path) as a diagram.",
+    )
+    graph.add_argument("model", metavar="MODEL")
+    graph.add_argument("--format", choices=("mermaid", "dot"), default="mermaid")
+    graph.set_defaults(func=cmd_graph)
 
     return parser
 
