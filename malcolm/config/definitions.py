@@ -41,6 +41,8 @@ GUI_KINDS = ("gui.Group",)
 
 _DEFINITION_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_-]*(?:\.[A-Za-z0-9_][\w-]*)*")
 _CHILD_NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+#: Text parameters each loader-handled namespace requires.
+_NEEDS = {"gui": ("name",), "block": ("name",), "client": ("name", "fullname")}
 
 PathLike = str | os.PathLike[str]
 
@@ -163,8 +165,7 @@ def _check_sections(sections: list[Section], problems: Problems) -> None:
             )
         elif s.namespace == "block" and not _DEFINITION_RE.fullmatch(s.name):
             problems.add(s.file, s.line, f"invalid definition name '{s.name}'")
-        needs = {"gui": ("name",), "block": ("name",), "client": ("name", "fullname")}
-        for key in needs.get(s.namespace, ()):
+        for key in _NEEDS.get(s.namespace, ()):
             if not isinstance(s.params.get(key), str):
                 problems.add(s.file, s.line, f"{s.kind} needs a '{key}' (text)")
         if s.kind == "gui.Group" and isinstance(s.params.get("name"), str):
