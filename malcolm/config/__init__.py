@@ -16,7 +16,6 @@ from .errors import ConfigError, Problem
 from .params import InitParam, resolve_params
 from .process_file import BlockSpec, ProcessSpec, expand_process, load_process_file
 from .registry import known_kinds, lookup, register
-from .substitute import substitute
 from .yamlsections import Section, load_sections, parse_sections
 
 __all__ = [
@@ -41,5 +40,4 @@ __all__ = [
     "parse_sections",
     "register",
     "resolve_params",
-    "substitute",
 ]
