@@ -1,0 +1,539 @@
+"""Use a malcolm Process from ordinary (blocking) Python code.
+
+A :class:`~malcolm.core.Process` lives on one asyncio loop. Scripts, GUIs and
+test harnesses usually have no loop of their own, so :class:`ThreadedProcess`
+runs the loop in a background thread and offers blocking calls that may be
+made from any other thread::
+
+    from malcolm.demo import demo_process
+    from malcolm.embed import start_process
+
+    with start_process(demo_process()) as tp:
+        hello = tp.block("HELLO")
+        print(hello.greet(name="me"))          # {'greeting': 'Hello me'}
+        counter = tp.block("COUNTER")
+        counter.counter.put(3)
+        counter.increment()
+        assert counter.counter.value == 4.0
+        counter.state.when("Ready", timeout=5)
+
+Errors raised by the process (``NotAllowedError``, ``BadValueError``,
+``AbortedError``...) are raised again, unchanged, in the calling thread.
+Subscription callbacks run in one dispatch thread of the ThreadedProcess, in
+the order the changes happened, so a callback may itself make blocking calls.
+
+For code that already runs on an asyncio loop, ``async with running(p):``
+starts the process on the current loop and stops it on the way out.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import logging
+import queue
+import threading
+from collections.abc import AsyncIterator, Callable, Coroutine, Iterable, Sequence
+from contextlib import asynccontextmanager
+from typing import Any, TypeVar
+
+from malcolm.core import (
+    Attribute,
+    BadValueError,
+    Method,
+    NotFoundError,
+    Process,
+    Subscription,
+    WaitTimeoutError,
+)
+
+__all__ = [
+    "AttributeProxy",
+    "BlockProxy",
+    "EmbeddedSubscription",
+    "MethodProxy",
+    "ThreadedProcess",
+    "from_file",
+    "running",
+    "start_process",
+]
+
+log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+
+_STOP = object()
+
+
+def from_file(
+    path: str, search_path: Iterable[str] = (), process: Process | None = None
+) -> Process:
+    """Build (not start) a Process from a process file.
+
+    Raises :class:`~malcolm.config.ConfigError` listing every problem.
+    """
+    try:
+        from malcolm.config.build import build_process
+    except ImportError as e:  # pragma: no cover - until the builder exists
+        raise RuntimeError(
+            f"cannot build processes from files: {e} (malcolm.config.build)"
+        ) from None
+    return build_process(path, search_path=tuple(search_path), process=process)
+
+
+@asynccontextmanager
+async def running(process: Process) -> AsyncIterator[Process]:
+    """``async with running(p):`` starts ``p`` on the current loop, then stops it."""
+    await process.start()
+    try:
+        yield process
+    finally:
+        await process.stop()
+
+
+def start_process(process: Process, timeout: float | None = None) -> ThreadedProcess:
+    """Start ``process`` on a loop in a background thread; blocks until ready."""
+    tp = ThreadedProcess(process)
+    tp.start(timeout)
+    return tp
+
+
+class EmbeddedSubscription:
+    """A subscription made through a ThreadedProcess; ``unsubscribe()`` ends it."""
+
+    def __init__(self, owner: ThreadedProcess, path: Sequence[str], callback: Any):
+        self.owner = owner
+        self.path = list(path)
+        self.callback = callback
+        self.active = True
+        self._sub: Subscription | None = None
+
+    def unsubscribe(self) -> None:
+        """Stop delivery, including changes made but not yet delivered."""
+        if not self.active:
+            return
+        self.active = False
+        self.owner._unsubscribe(self)
+
+    def __enter__(self) -> EmbeddedSubscription:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.unsubscribe()
+
+    def __repr__(self) -> str:
+        return f"<EmbeddedSubscription {'.'.join(self.path)} active={self.active}>"
+
+
+class ThreadedProcess:
+    """A Process run on an asyncio loop in a background thread.
+
+    Every method blocks the calling thread until the loop has done the work
+    and may be called from any thread except the loop's own (which would
+    wait for itself: that raises RuntimeError). ``timeout`` arguments are in
+    seconds; ``None`` waits for ever.
+    """
+
+    def __init__(self, process: Process) -> None:
+        self.process = process
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._dispatcher: threading.Thread | None = None
+        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._subs: list[EmbeddedSubscription] = []
+        self._lock = threading.Lock()
+        self.started = False
+
+    @classmethod
+    def from_file(cls, path: str, search_path: Iterable[str] = ()) -> ThreadedProcess:
+        """A (not started) ThreadedProcess for the blocks of a process file."""
+        return cls(from_file(path, search_path))
+
+    # ---- lifecycle
+    def start(self, timeout: float | None = None) -> ThreadedProcess:
+        """Start the loop thread and run ``process.start()`` on it."""
+        with self._lock:
+            if self._thread is not None:
+                raise RuntimeError(f"process {self.process.name!r} already started")
+            ready = threading.Event()
+            self._thread = threading.Thread(
+                target=self._run_loop,
+                args=(ready,),
+                name=f"malcolm-{self.process.name}-loop",
+                daemon=True,
+            )
+            self._thread.start()
+            ready.wait()
+            self._dispatcher = threading.Thread(
+                target=self._dispatch,
+                name=f"malcolm-{self.process.name}-callbacks",
+                daemon=True,
+            )
+            self._dispatcher.start()
+        try:
+            self._run(self.process.start(), timeout, "start")
+        except BaseException:
+            self._shutdown()
+            raise
+        self.started = True
+        return self
+
+    def stop(self, timeout: float | None = None) -> None:
+        """Stop the process, then the loop and its thread. Safe to call twice."""
+        if self._thread is None:
+            return
+        self._check_thread()
+        try:
+            if self.started:
+                self._run(self.process.stop(), timeout, "stop")
+        finally:
+            self.started = False
+            for sub in list(self._subs):
+                sub.active = False
+            self._subs.clear()
+            self._shutdown()
+
+    def __enter__(self) -> ThreadedProcess:
+        if self._thread is None:
+            self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def _run_loop(self, ready: threading.Event) -> None:
+        loop = asyncio.new_event_loop()
+        asyncio.set_event_loop(loop)
+        self.loop = loop
+        ready.set()
+        try:
+            loop.run_forever()
+            tasks = [t for t in asyncio.all_tasks(loop) if not t.done()]
+            for t in tasks:
+                t.cancel()
+            if tasks:
+                loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
+            loop.run_until_complete(loop.shutdown_asyncgens())
+        finally:
+            loop.close()
+
+    def _shutdown(self) -> None:
+        loop, thread = self.loop, self._thread
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(loop.stop)
+        if thread is not None and thread is not threading.current_thread():
+            thread.join()
+        dispatcher = self._dispatcher
+        if dispatcher is not None:
+            self._queue.put(_STOP)
+            if dispatcher is not threading.current_thread():
+                dispatcher.join()
+        self._thread = self._dispatcher = None
+        self.loop = None
+
+    def _dispatch(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is _STOP:
+                return
+            sub, payload = item
+            if not sub.active:
+                continue
+            try:
+                sub.callback(payload)
+            except Exception:
+                log.exception("subscriber %r raised", sub)
+
+    # ---- running work on the loop
+    def _check_thread(self) -> None:
+        if self._thread is not None and threading.current_thread() is self._thread:
+            raise RuntimeError(
+                "a blocking ThreadedProcess call was made on the process's own loop;"
+                " use the Process's async methods there"
+            )
+
+    def _loop(self) -> asyncio.AbstractEventLoop:
+        loop = self.loop
+        if loop is None or not loop.is_running():
+            raise RuntimeError(f"process {self.process.name!r} is not running")
+        return loop
+
+    def _run(self, coro: Coroutine[Any, Any, T], timeout: float | None, what: str) -> T:
+        try:
+            self._check_thread()
+            future = asyncio.run_coroutine_threadsafe(coro, self._loop())
+        except BaseException:
+            coro.close()
+            raise
+        try:
+            return future.result(timeout)
+        except concurrent.futures.TimeoutError:
+            if not future.done():
+                future.cancel()
+                raise WaitTimeoutError(
+                    f"{self.process.name}: {what} did not finish in {timeout}s"
+                ) from None
+            raise  # the work itself raised a TimeoutError
+
+    def _run_future(self, coro: Coroutine[Any, Any, T]) -> concurrent.futures.Future[T]:
+        try:
+            return asyncio.run_coroutine_threadsafe(coro, self._loop())
+        except BaseException:
+            coro.close()
+            raise
+
+    def call_in_loop(
+        self, func: Callable[..., T], *args: Any, timeout: float | None = None
+    ) -> T:
+        """Run plain ``func(*args)`` on the loop thread; return its result."""
+
+        async def run() -> T:
+            return func(*args)
+
+        return self._run(run(), timeout, getattr(func, "__name__", "call"))
+
+    # ---- the Process API, blocking
+    def get(self, path: Sequence[str], timeout: float | None = None) -> Any:
+        """The plain data at ``path``, e.g. ``["COUNTER", "counter", "value"]``."""
+        return self.call_in_loop(self.process.get, list(path), timeout=timeout)
+
+    def put(self, path: Sequence[str], value: Any, timeout: float | None = None):
+        """Put to ``[mri, attribute]``; returns once the put is complete."""
+        self._run(self.process.put(list(path), value), timeout, f"put {path}")
+
+    def post(
+        self,
+        path: Sequence[str],
+        params: dict[str, Any] | None = None,
+        timeout: float | None = None,
+    ) -> Any:
+        """Call the method at ``[mri, method]``; return what it returns."""
+        return self._run(self.process.post(list(path), params), timeout, f"{path}")
+
+    def post_async(
+        self, path: Sequence[str], params: dict[str, Any] | None = None
+    ) -> concurrent.futures.Future[Any]:
+        """Start a call and return at once; ``.result()`` waits for it."""
+        return self._run_future(self.process.post(list(path), params))
+
+    def subscribe(
+        self, path: Sequence[str], callback: Callable[[Any], None], delta: bool = True
+    ) -> EmbeddedSubscription:
+        """Like Process.subscribe, but ``callback`` runs in the dispatch thread.
+
+        The first call carries the current value. Returns a handle whose
+        ``unsubscribe()`` stops delivery.
+        """
+        handle = EmbeddedSubscription(self, path, callback)
+
+        def on_loop() -> None:
+            handle._sub = self.process.subscribe(
+                list(path), lambda payload: self._queue.put((handle, payload)), delta
+            )
+
+        self.call_in_loop(on_loop)
+        self._subs.append(handle)
+        return handle
+
+    def _unsubscribe(self, handle: EmbeddedSubscription) -> None:
+        if handle in self._subs:
+            self._subs.remove(handle)
+        sub = handle._sub
+        if sub is not None and self.loop is not None and self.loop.is_running():
+            if threading.current_thread() is self._thread:
+                self.process.unsubscribe(sub)
+            else:
+                self.call_in_loop(self.process.unsubscribe, sub)
+
+    def when(
+        self,
+        path: Sequence[str],
+        match: Any,
+        timeout: float | None = None,
+        bad_values: Iterable[Any] = (),
+    ) -> Any:
+        """Wait until the value at ``path`` equals ``match`` (or, if ``match``
+        is callable, ``match(value)`` is true); return that value.
+
+        Raises WaitTimeoutError after ``timeout`` seconds, and BadValueError
+        as soon as the value is one of ``bad_values``.
+        """
+        path = list(path)
+        bad = list(bad_values)
+        test = match if callable(match) else (lambda v: v == match)
+        name = ".".join(path)
+
+        async def wait() -> Any:
+            loop = asyncio.get_running_loop()
+            found: asyncio.Future[Any] = loop.create_future()
+            last: list[Any] = [None]
+
+            def check(value: Any) -> None:
+                last[0] = value
+                if found.done():
+                    return
+                if value in bad:
+                    found.set_exception(
+                        BadValueError(
+                            f"{name} is {value!r} while waiting for {match!r}"
+                        )
+                    )
+                elif test(value):
+                    found.set_result(value)
+
+            sub = self.process.subscribe(path, check, delta=False)
+            try:
+                return await asyncio.wait_for(found, timeout)
+            except TimeoutError:
+                raise WaitTimeoutError(
+                    f"{name} was not {match!r} after {timeout}s (it is {last[0]!r})"
+                ) from None
+            finally:
+                self.process.unsubscribe(sub)
+
+        return self._run(wait(), None, f"when {name}")
+
+    # ---- blocks
+    @property
+    def mris(self) -> list[str]:
+        return self.call_in_loop(lambda: self.process.mris)
+
+    def block(self, mri: str) -> BlockProxy:
+        """A proxy for block ``mri``; NotFoundError if there is none."""
+        self.call_in_loop(self.process.get_block, mri)
+        return BlockProxy(self, mri)
+
+    def __repr__(self) -> str:
+        state = "running" if self.started else "stopped"
+        return f"<ThreadedProcess {self.process.name!r} {state}>"
+
+
+class BlockProxy:
+    """Attributes and methods of one block, as blocking Python attributes.
+
+    ``proxy.name`` is a :class:`MethodProxy` or an :class:`AttributeProxy`;
+    ``proxy["name"]`` does the same for names that clash with Python.
+    """
+
+    def __init__(self, owner: ThreadedProcess, mri: str) -> None:
+        self._owner = owner
+        self.mri = mri
+
+    def _field(self, name: str) -> AttributeProxy | MethodProxy:
+        def kind() -> type | None:
+            block = self._owner.process.get_block(self.mri)
+            if name not in block:
+                return None
+            return Method if isinstance(block[name], Method) else Attribute
+
+        found = self._owner.call_in_loop(kind)
+        if found is None:
+            raise NotFoundError(
+                f"{self.mri} has no field {name!r} (fields: {', '.join(self._names())})"
+            )
+        if found is Method:
+            return MethodProxy(self._owner, self.mri, name)
+        return AttributeProxy(self._owner, self.mri, name)
+
+    def _names(self) -> list[str]:
+        return self._owner.call_in_loop(
+            lambda: list(self._owner.process.get_block(self.mri))
+        )
+
+    def __getitem__(self, name: str) -> AttributeProxy | MethodProxy:
+        return self._field(name)
+
+    def __getattr__(self, name: str) -> AttributeProxy | MethodProxy:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        try:
+            return self._field(name)
+        except NotFoundError as e:
+            raise AttributeError(str(e)) from None
+
+    def __dir__(self) -> list[str]:
+        return sorted(set(super().__dir__()) | set(self._names()))
+
+    def to_dict(self) -> dict[str, Any]:
+        """The whole block as plain data."""
+        return self._owner.get([self.mri])
+
+    def __repr__(self) -> str:
+        return f"<BlockProxy {self.mri}>"
+
+
+class AttributeProxy:
+    """One attribute: ``.value``, ``.put(v)``, ``.subscribe(cb)``, ``.when(v)``."""
+
+    def __init__(self, owner: ThreadedProcess, mri: str, name: str) -> None:
+        self._owner = owner
+        self.mri = mri
+        self.name = name
+
+    @property
+    def path(self) -> list[str]:
+        return [self.mri, self.name]
+
+    @property
+    def value(self) -> Any:
+        return self._owner.get([*self.path, "value"])
+
+    def to_dict(self) -> dict[str, Any]:
+        return self._owner.get(self.path)
+
+    @property
+    def meta(self) -> dict[str, Any]:
+        return self._owner.get([*self.path, "meta"])
+
+    def put(self, value: Any, timeout: float | None = None) -> None:
+        """Put ``value``; returns when the put is complete."""
+        self._owner.put(self.path, value, timeout)
+
+    def subscribe(
+        self, callback: Callable[[Any], None], delta: bool = False
+    ) -> EmbeddedSubscription:
+        """``callback(value)`` now and on every change (the dispatch thread).
+
+        With ``delta=True`` the callback gets lists of changes to the whole
+        attribute (value, alarm, timeStamp...) instead.
+        """
+        path = self.path if delta else [*self.path, "value"]
+        return self._owner.subscribe(path, callback, delta)
+
+    def when(
+        self, match: Any, timeout: float | None = None, bad_values: Iterable[Any] = ()
+    ) -> Any:
+        """Wait until the value equals ``match`` (or ``match(value)``)."""
+        return self._owner.when([*self.path, "value"], match, timeout, bad_values)
+
+    def __repr__(self) -> str:
+        return f"<AttributeProxy {self.mri}.{self.name}>"
+
+
+class MethodProxy:
+    """One method: call it with keyword arguments; it returns what it returns."""
+
+    def __init__(self, owner: ThreadedProcess, mri: str, name: str) -> None:
+        self._owner = owner
+        self.mri = mri
+        self.name = name
+
+    def __call__(self, **params: Any) -> Any:
+        return self._owner.post([self.mri, self.name], params)
+
+    def call(
+        self, params: dict[str, Any] | None = None, timeout: float | None = None
+    ) -> Any:
+        """Call with a dict of parameters; WaitTimeoutError after ``timeout``."""
+        return self._owner.post([self.mri, self.name], params, timeout)
+
+    def future(self, **params: Any) -> concurrent.futures.Future[Any]:
+        """Start the call and return at once (``.result()`` waits)."""
+        return self._owner.post_async([self.mri, self.name], params)
+
+    @property
+    def meta(self) -> dict[str, Any]:
+        return self._owner.get([self.mri, self.name, "meta"])
+
+    def __repr__(self) -> str:
+        return f"<MethodProxy {self.mri}.{self.name}()>"
