@@ -55,7 +55,9 @@ __all__ = [
     "ThreadedProcess",
     "from_file",
     "running",
+    "serve",
     "start_process",
+    "watch_states",
 ]
 
 log = logging.getLogger(__name__)
@@ -75,6 +77,10 @@ def from_file(
     try:
         from malcolm.config.build import build_process
     except ImportError as e:  # pragma: no cover - until the builder exists
+        from malcolm.config import expand_process, load_process_file
+
+        # still report the file's own problems first
+        expand_process(load_process_file(path, tuple(search_path)), search_path)
         raise RuntimeError(
             f"cannot build processes from files: {e} (malcolm.config.build)"
         ) from None
@@ -537,3 +543,72 @@ class MethodProxy:
 
     def __repr__(self) -> str:
         return f"<MethodProxy {self.mri}.{self.name}()>"
+
+
+def watch_states(
+    process: Process, logger: logging.Logger | None = None
+) -> list[Subscription]:
+    """Log ``MRI: Old -> New`` for every state change of every block, and
+    ``MRI: health: message`` when a block's health stops being OK.
+
+    Subscribe before ``process.start()`` to see ``Disabled -> Resetting``.
+    Returns the subscriptions (pass each to ``process.unsubscribe``).
+    """
+    logger = logger or logging.getLogger("malcolm.serve")
+    subs = []
+    for mri in process.mris:
+        last: dict[str, Any] = {}
+
+        def on_state(value: Any, mri: str = mri, last: dict[str, Any] = last) -> None:
+            before = last.get("state")
+            last["state"] = value
+            if before is not None and value != before:
+                logger.info("%s: %s -> %s", mri, before, value)
+
+        def on_health(value: Any, mri: str = mri, last: dict[str, Any] = last) -> None:
+            before = last.get("health")
+            last["health"] = value
+            if before is not None and value != before:
+                level = logging.INFO if value == "OK" else logging.WARNING
+                logger.log(level, "%s: health: %s", mri, value)
+
+        block = process.get_block(mri)
+        subs.append(process.subscribe([mri, "state", "value"], on_state, False))
+        if "health" in block:
+            subs.append(process.subscribe([mri, "health", "value"], on_health, False))
+    return subs
+
+
+async def serve(
+    process: Process,
+    ready: Callable[[Process], None] | None = None,
+    signals: Iterable[int] | None = None,
+    logger: logging.Logger | None = None,
+) -> None:
+    """Start ``process`` on the current loop, logging state changes; run until
+    one of ``signals`` (default SIGINT and SIGTERM) arrives, then stop it.
+
+    ``ready(process)`` is called once every block has started.
+    """
+    import signal as _signal
+
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    sigs = list(signals) if signals is not None else [_signal.SIGINT, _signal.SIGTERM]
+    for sig in sigs:
+        loop.add_signal_handler(sig, stop.set)
+    subs = watch_states(process, logger)
+    try:
+        await process.start()
+        if ready is not None:
+            ready(process)
+        await stop.wait()
+        (logger or logging.getLogger("malcolm.serve")).info("stopping")
+    finally:
+        for sig in sigs:
+            loop.remove_signal_handler(sig)
+        try:
+            await process.stop()
+        finally:
+            for sub in subs:
+                process.unsubscribe(sub)
