@@ -29,7 +29,10 @@ class Block:
         """Add a field (or replace one with the same name)."""
         if fld.name in ("meta", "typeid") or not fld.name.isidentifier():
             raise ValueError(f"{self.mri}: invalid field name {fld.name!r}")
-        existed = fld.name in self._fields
+        old = self._fields.get(fld.name)
+        existed = old is not None
+        if old is not None and old is not fld:
+            old.block = None
         fld.block = self
         self._fields[fld.name] = fld
         if not existed:

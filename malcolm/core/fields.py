@@ -16,6 +16,8 @@ if TYPE_CHECKING:
 
 Change = list  # [path: list[str], value] or [path] for a delete
 
+TABLE_TYPEID = "malcolm:core/Table:1.0"
+
 
 class Field:
     """Something with a name that lives in a block and reports its changes."""
@@ -85,7 +87,7 @@ class Attribute(Field):
             value = self.validate(value)
         self.value = value
         self.timeStamp = timeStamp or TimeStamp.now()
-        changes: list[Change] = [[[self.name, "value"], plain(value)]]
+        changes: list[Change] = [[[self.name, "value"], self.value_dict()]]
         if alarm is not None and alarm != self.alarm:
             self.alarm = alarm
             changes.append([[self.name, "alarm"], alarm.to_dict()])
@@ -108,15 +110,19 @@ class Attribute(Field):
             self.meta.writeable = writeable
             self._notify([[[self.name, "meta", "writeable"], writeable]])
 
+    def value_dict(self) -> Any:
+        """The value as plain data, as it appears in ``to_dict()["value"]``."""
+        if isinstance(self.meta, TableMeta):
+            value = dict(plain(self.value))
+            value["typeid"] = TABLE_TYPEID
+            return value
+        return plain(self.value)
+
     def to_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = {"typeid": self.typeid}
         if isinstance(self.meta, TableMeta):
             d["labels"] = [m.label or k for k, m in self.meta.elements.items()]
-            value = dict(plain(self.value))
-            value["typeid"] = "malcolm:core/Table:1.0"
-            d["value"] = value
-        else:
-            d["value"] = plain(self.value)
+        d["value"] = self.value_dict()
         d["alarm"] = self.alarm.to_dict()
         d["timeStamp"] = self.timeStamp.to_dict()
         d["meta"] = self.meta.to_dict()
@@ -142,6 +148,15 @@ class MethodLog:
             "alarm": self.alarm.to_dict(),
             "timeStamp": self.timeStamp.to_dict(),
         }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> MethodLog:
+        return cls(
+            dict(d.get("value", {})),
+            list(d.get("present", [])),
+            Alarm.from_dict(d.get("alarm", {})),
+            TimeStamp.from_dict(d.get("timeStamp", {})),
+        )
 
 
 class Method(Field):

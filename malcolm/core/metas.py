@@ -242,8 +242,8 @@ class ChoiceMeta(Meta):
         if isinstance(value, int) and not isinstance(value, bool):
             if 0 <= value < len(self.choices):
                 return self.choices[value]
-        if value is None and self.choices:
-            return self.choices[0]
+        if value is None or (value == "" and not self.choices):
+            return self.default()  # no choices (yet): "" is the only value
         raise BadValueError(
             f"{_describe(value)} is not one of {', '.join(self.choices) or '(none)'}"
         )

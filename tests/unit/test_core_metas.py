@@ -180,6 +180,9 @@ def test_bad_choices_list_the_choices(value):
 def test_choices_none_given():
     with pytest.raises(BadValueError, match=r"not one of \(none\)"):
         ChoiceMeta([]).validate("x")
+    # the default of a meta always validates, even with no choices (yet)
+    assert ChoiceMeta([]).validate(ChoiceMeta([]).default()) == ""
+    assert ChoiceMeta([]).validate(None) == ""
 
 
 # ---- arrays
@@ -245,7 +248,10 @@ def test_table_missing_column_is_filled_and_typeid_ignored():
     "value, message",
     [
         ({"x": [1, 2, 3.5]}, r"^row 2, column x: expected an integer \(int32\)"),
-        ({"x": [1], "name": ["a", "b"]}, r"^column x has 1 rows, but column name has 2"),
+        (
+            {"x": [1], "name": ["a", "b"]},
+            r"^column x has 1 rows, but column name has 2",
+        ),
         ({"x": "12"}, r"^column x: expected an array"),
         ({"y": [1]}, r"^unknown column 'y' \(columns: name, x, on\)"),
         ([{"x": 1}, {"x": "a"}], r"^row 1, column x: expected a number"),
