@@ -29,6 +29,7 @@ from .metas import (
     TableMeta,
 )
 from .process import Process, Subscription
+from .serialize import apply_changes, from_dict, register_typeid, to_dict
 from .timestamp import TimeStamp
 
 __all__ = [
@@ -38,7 +39,8 @@ __all__ = [
     "Method", "MethodLog", "MethodMeta", "NotAllowedError", "NotFoundError",
     "NotWriteableError", "NumberArrayMeta", "NumberMeta", "PhaseTimeoutError",
     "Process", "StringArrayMeta", "StringMeta", "Subscription", "TableMeta",
-    "TimeStamp", "WaitTimeoutError",
+    "TimeStamp", "WaitTimeoutError", "apply_changes", "from_dict", "register_typeid",
+    "to_dict",
 ]  # fmt: skip
 
 
