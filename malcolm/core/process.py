@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+from collections import deque
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -26,6 +27,7 @@ class Subscription:
         self.path = list(path)
         self.callback = callback
         self.delta = delta
+        self.active = True
 
     def __repr__(self) -> str:
         return f"<Subscription {'.'.join(self.path)} delta={self.delta}>"
@@ -52,6 +54,10 @@ class Process:
         self.name = name
         self._controllers: dict[str, Controller] = {}
         self._subs: dict[str, list[Subscription]] = {}
+        # deliveries wait here while a callback runs, so that every
+        # subscriber sees changes in the order they were made
+        self._queue: deque[tuple[Subscription, Any]] = deque()
+        self._delivering = False
         self.loop: asyncio.AbstractEventLoop | None = None
         self.started = False
 
@@ -126,7 +132,14 @@ class Process:
     def subscribe(
         self, path: Sequence[str], callback: Callback, delta: bool = True
     ) -> Subscription:
-        """Subscribe; the callback gets the current value at once, then changes."""
+        """Subscribe; the callback gets the current value at once, then changes.
+
+        With ``delta=True`` the first call is ``[[[], value]]`` and later ones
+        lists of changes relative to ``path``; with ``delta=False`` each call
+        gets the whole value at ``path`` (None once it has been deleted).
+        """
+        if isinstance(path, str) or not path:
+            raise NotFoundError(f"subscribe needs a path [mri, ...], got {path!r}")
         value = self.get(path)
         sub = Subscription(path, callback, delta)
         self._subs.setdefault(sub.path[0], []).append(sub)
@@ -134,9 +147,13 @@ class Process:
         return sub
 
     def unsubscribe(self, sub: Subscription) -> None:
+        """Stop delivery to ``sub`` (including anything not yet delivered)."""
+        sub.active = False
         subs = self._subs.get(sub.path[0], [])
         if sub in subs:
             subs.remove(sub)
+            if not subs:
+                del self._subs[sub.path[0]]
 
     def _deliver(self, sub: Subscription, payload: Any) -> None:
         try:
@@ -144,28 +161,43 @@ class Process:
         except Exception:
             log.exception("subscriber %r raised", sub)
 
+    def _get_or_none(self, path: Sequence[str]) -> tuple[bool, Any]:
+        try:
+            return True, self.get(path)
+        except NotFoundError:
+            return False, None
+
+    def _relative(self, sub: Subscription, changes: list[Change]) -> list[Change]:
+        """``changes`` as seen from ``sub.path`` (empty if none touch it)."""
+        rest = sub.path[1:]
+        n = len(rest)
+        out: list[Change] = []
+        for change in changes:
+            p = list(change[0])
+            if p[:n] == rest:
+                out.append([p[n:], *change[1:]])
+            elif rest[: len(p)] == p:
+                # a parent of the subscribed path was replaced or deleted
+                exists, value = self._get_or_none(sub.path)
+                out.append([[], value] if exists else [[]])
+        return out
+
     def _on_changes(self, mri: str, changes: list[Change]) -> None:
-        subs = self._subs.get(mri)
-        if not subs:
-            return
-        for sub in list(subs):
-            rest = sub.path[1:]
-            n = len(rest)
-            out: list[Change] = []
-            for change in changes:
-                p = change[0]
-                if p[:n] == rest:
-                    out.append([p[n:], *change[1:]])
-                elif rest[: len(p)] == p:
-                    try:
-                        out.append([[], self.get(sub.path)])
-                    except NotFoundError:
-                        out.append([[]])
-            if out:
-                if sub.delta:
-                    self._deliver(sub, out)
-                else:
-                    try:
-                        self._deliver(sub, self.get(sub.path))
-                    except NotFoundError:
-                        self._deliver(sub, None)
+        for sub in list(self._subs.get(mri, ())):
+            relative = self._relative(sub, changes)
+            if relative:
+                payload = relative if sub.delta else self._get_or_none(sub.path)[1]
+                self._queue.append((sub, payload))
+        self._flush()
+
+    def _flush(self) -> None:
+        if self._delivering:
+            return  # the outer _flush delivers these after what came before
+        self._delivering = True
+        try:
+            while self._queue:
+                sub, payload = self._queue.popleft()
+                if sub.active:
+                    self._deliver(sub, payload)
+        finally:
+            self._delivering = False
