@@ -25,7 +25,7 @@ Sections are read in order:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -73,17 +73,23 @@ class ProcessSpec:
 
 
 def load_process_file(
-    path: PathLike, search_path: Sequence[PathLike] = ()
+    path: PathLike,
+    search_path: Sequence[PathLike] = (),
+    defines: Mapping[str, Any] | None = None,
 ) -> ProcessSpec:
     """Read a process file and its includes; check every block entry.
 
     Each block's definition must exist on the search path (see
     :func:`~malcolm.config.definitions.find_definition`) and its values must
-    match the definition's parameters. Raises one ConfigError with every
-    problem found.
+    match the definition's parameters. ``defines`` replaces the values of
+    ``define.<Type>`` sections of those names (checked against their type),
+    as ``-D`` does for a compiler; naming one the files never define is an
+    error. Raises one ConfigError with every problem found.
     """
-    reader = _Reader(search_path)
+    reader = _Reader(search_path, defines or {})
     reader.read(Path(path), ())
+    for name in reader.overrides.keys() - reader.define_sites.keys():
+        reader.problems.add(str(path), 1, f"no define '{name}' to override")
     reader.problems.raise_if_any()
     return ProcessSpec(reader.blocks, reader.defines)
 
@@ -127,8 +133,11 @@ def expand_process(
 
 
 class _Reader:
-    def __init__(self, search_path: Sequence[PathLike]) -> None:
+    def __init__(
+        self, search_path: Sequence[PathLike], overrides: Mapping[str, Any]
+    ) -> None:
         self.search_path = search_path
+        self.overrides = dict(overrides)
         self.problems = Problems()
         self.defines: dict[str, Any] = {}
         self.define_sites: dict[str, str] = {}
@@ -211,13 +220,16 @@ class _Reader:
                 section.line,
                 f"'{name}' is defined twice (first at {self.define_sites[name]})",
             )
+        given = name in self.overrides
+        if given:
+            value = self.overrides[name]
         ok, value = check_value(section.name, value)
         if not ok:
             raise ConfigError.at(
                 file,
                 section.line_of(("value",)),
                 f"value of '{name}' must be {describe_type(section.name)}, "
-                f"not {value!r}",
+                f"not {value!r}" + (" (given by the caller)" if given else ""),
             )
         self.defines[name] = value
         self.define_sites[name] = f"{file}:{section.line}"

@@ -3,9 +3,12 @@
 :func:`lookup` tries, in order:
 
 1. kinds registered with :func:`register` (a call or a decorator);
-2. entry points in the group ``malcolm.sections`` whose name is the kind,
+2. malcolm's built-in kinds (:func:`register_builtin`, made by
+   ``malcolm.config.builtin``), which an explicit :func:`register` of the
+   same kind replaces;
+3. entry points in the group ``malcolm.sections`` whose name is the kind,
    e.g. ``parts.MyPart = mypkg.parts:MyPart`` in a package's metadata;
-3. an import path in the section name: ``parts.mypkg.parts.MyPart`` imports
+4. an import path in the section name: ``parts.mypkg.parts.MyPart`` imports
    ``mypkg.parts`` and takes ``MyPart``; ``parts.mypkg.parts:MyPart`` says
    where the module ends.
 
@@ -35,6 +38,7 @@ LOADER_NAMESPACES = frozenset({"init", "gui", "controller", "block", "client"})
 F = TypeVar("F", bound=Callable[..., Any])
 
 _registry: dict[str, Callable[..., Any]] = {}
+_builtins: dict[str, Callable[..., Any]] = {}
 
 
 def register(kind: str, factory: F | None = None) -> Any:
@@ -58,6 +62,13 @@ def register(kind: str, factory: F | None = None) -> Any:
     return decorate if factory is None else decorate(factory)
 
 
+def register_builtin(kind: str, factory: Callable[..., Any]) -> None:
+    """Register one of malcolm's own kinds, below explicit registrations."""
+    if not KIND_RE.fullmatch(kind) or "." not in kind:
+        raise ValueError(f"invalid section kind {kind!r} (expected namespace.Name)")
+    _builtins[kind] = factory
+
+
 def unregister(kind: str) -> None:
     """Forget an explicitly registered kind (for tests and reloading)."""
     _registry.pop(kind, None)
@@ -68,14 +79,16 @@ def _entry_points() -> list[importlib.metadata.EntryPoint]:
 
 
 def known_kinds() -> list[str]:
-    """Every kind registered explicitly or by an entry point, sorted."""
-    return sorted(set(_registry) | {ep.name for ep in _entry_points()})
+    """Every kind registered (explicitly, built in, by entry point), sorted."""
+    return sorted(set(_registry) | set(_builtins) | {ep.name for ep in _entry_points()})
 
 
 def lookup(kind: str, file: str = "<unknown>", line: int = 1) -> Callable[..., Any]:
     """The factory for ``kind``; ConfigError at ``file:line`` if none."""
     if kind in _registry:
         return _registry[kind]
+    if kind in _builtins:
+        return _builtins[kind]
     for ep in _entry_points():
         if ep.name == kind:
             try:
