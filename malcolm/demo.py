@@ -1,5 +1,6 @@
 """The demo process: simulated hardware that needs nothing installed.
 
+Built from the YAML definitions in ``malcolm/blocks/demo/``.
 Blocks: ``HELLO`` (greet, error), ``COUNTER`` (counter, delta, zero,
 increment), motors ``MOTOR:X`` and ``MOTOR:Y``, runnable detectors ``DET1``
 and ``DET2`` that take the scan's duration per point, and ``SCAN``, which
@@ -11,55 +12,23 @@ from __future__ import annotations
 import asyncio
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TextIO
 
-from malcolm.controllers.runnable import RunnableController
-from malcolm.controllers.stateful import StatefulController
 from malcolm.core import Process
-from malcolm.parts.demo import (
-    CounterPart,
-    HelloPart,
-    MotorMovePart,
-    RunnableChildPart,
-    SimDetectorPart,
-    SimMotorPart,
-)
+
+#: The demo's process file; copy it to start your own.
+DEMO_PROCESS_FILE = Path(__file__).resolve().parent / "blocks" / "demo" / "process.yaml"
 
 
 def demo_process(prefix: str = "") -> Process:
-    """Build (not start) the demo process; ``prefix`` goes before every mri."""
-    p = Process("demo")
-    p.add_controller(
-        StatefulController(f"{prefix}HELLO", [HelloPart("hello")], "Says hello")
+    """Build (not start) the demo process from ``blocks/demo/process.yaml``;
+    ``prefix`` (the file's ``prefix`` define) goes before every mri."""
+    from malcolm.config.build import build_process
+
+    return build_process(
+        DEMO_PROCESS_FILE, process=Process("demo"), defines={"prefix": prefix}
     )
-    p.add_controller(
-        StatefulController(f"{prefix}COUNTER", [CounterPart("counter")], "Counts")
-    )
-    for axis in ("X", "Y"):
-        p.add_controller(
-            StatefulController(
-                f"{prefix}MOTOR:{axis}", [SimMotorPart("motor")], f"Motor {axis}"
-            )
-        )
-    for det in ("DET1", "DET2"):
-        p.add_controller(
-            RunnableController(
-                f"{prefix}{det}", [SimDetectorPart("detector")], "Simulated detector"
-            )
-        )
-    p.add_controller(
-        RunnableController(
-            f"{prefix}SCAN",
-            [
-                RunnableChildPart("DET1", f"{prefix}DET1"),
-                RunnableChildPart("DET2", f"{prefix}DET2"),
-                MotorMovePart("x", f"{prefix}MOTOR:X", "x"),
-                MotorMovePart("y", f"{prefix}MOTOR:Y", "y"),
-            ],
-            "Scans the motors while both detectors take frames",
-        )
-    )
-    return p
 
 
 def demo_generator(
@@ -97,17 +66,18 @@ def progress_bar(done: int, total: int, width: int = 40) -> str:
 async def run_demo_scan(
     process: Process,
     generator: dict[str, Any] | None = None,
-    out: TextIO = sys.stdout,
+    out: TextIO | None = None,
     on_progress: Callable[[int, int], None] | None = None,
 ) -> None:
     """Configure and run SCAN to the end, drawing completedSteps/totalSteps."""
+    stream = out or sys.stdout
     scan = next(m for m in process.mris if m.endswith("SCAN"))
     block = process.get_block(scan)
 
     def draw(done: int) -> None:
         total = block.totalSteps.value
-        out.write(f"\r{scan} {progress_bar(done, total)}")
-        out.flush()
+        stream.write(f"\r{scan} {progress_bar(done, total)}")
+        stream.flush()
         if on_progress:
             on_progress(done, total)
 
@@ -120,7 +90,7 @@ async def run_demo_scan(
             await process.post([scan, "run"])
     finally:
         process.unsubscribe(sub)
-        out.write(f"\n{scan} {block.state.value}\n")
+        stream.write(f"\n{scan} {block.state.value}\n")
 
 
 def describe(process: Process) -> str:
@@ -132,7 +102,9 @@ def describe(process: Process) -> str:
     return "\n".join(lines)
 
 
-async def serve_demo(scan: bool, out: TextIO = sys.stdout) -> int:
+async def serve_demo(scan: bool, out: TextIO | None = None) -> int:
+    # sys.stdout is read per call (not as a default) so redirections apply
+    out = out or sys.stdout
     process = demo_process()
     await process.start()
     out.write("malcolm demo: blocks (mri, state, fields)\n" + describe(process) + "\n")
