@@ -16,8 +16,23 @@ from malcolm.core import (
     NotFoundError,
     WaitTimeoutError,
 )
-from malcolm.demo import demo_generator, demo_process
 from malcolm.embed import ThreadedProcess, running, start_process
+
+# malcolm.demo is imported lazily: serve_demo() binds sys.stdout as a default
+# argument when the module is first imported, so importing it while pytest
+# collects would hide `malcolm demo` output from test_demo's capsys.
+
+
+def demo_process():
+    from malcolm.demo import demo_process
+
+    return demo_process()
+
+
+def demo_generator(*args):
+    from malcolm.demo import demo_generator
+
+    return demo_generator(*args)
 
 
 @pytest.fixture
