@@ -281,5 +281,6 @@ def load_design(path: str | os.PathLike[str]) -> Design:
         with problems.collect():
             design.records.append(_record(section, cls))
             design.lines.append((section.file, section.line))
+    problems.problems.sort(key=lambda p: p.line)
     problems.raise_if_any()
     return design
