@@ -86,6 +86,7 @@ def test_broken_definition_reports_every_problem(capsys):
 
 
 def test_a_good_definition_is_ok(capsys, tmp_path):
+    write(tmp_path / "blocks/t/Other.yaml", "init.String:\n    name: prefix\n")
     good = write(
         tmp_path / "blocks/t/Good.yaml",
         "init.String:\n    name: prefix\n    required: true\n"
@@ -302,3 +303,42 @@ def test_installed_command_exit_status_and_streams(tmp_path):
     assert result.stdout == f"{bad}:3: default 'x' is not an Int\n"
     assert "1 problem in 1 of 1 file" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+# ---- building (malcolm.config.build), without starting anything
+
+
+@pytest.fixture
+def builder():
+    return pytest.importorskip(
+        "malcolm.config.build", reason="malcolm.config.build has not landed yet"
+    )
+
+
+def test_definition_that_cannot_be_built(capsys, tmp_path, builder):
+    path = write(
+        tmp_path / "d.yaml",
+        "parts.HelloPart:\n    name: hello\n    bogus: 1\n"
+        "parts.CounterPart:\n    name: counter\n",
+    )
+    status, out, _ = run(capsys, path)
+    assert status == 1
+    assert out and out[0].startswith(f"{path}:") and "bogus" in out[0]
+
+
+def test_process_that_cannot_be_built(capsys, tmp_path, builder):
+    write(
+        tmp_path / "blocks/t/Two.yaml",
+        "parts.CounterPart:\n    name: c\nparts.CounterPart:\n    name: c\n",
+    )
+    proc = write(tmp_path / "proc.yaml", "block.t.Two:\n    mri: T:TWO\n")
+    status, out, _ = run(capsys, proc)
+    assert status == 1 and out
+
+
+def test_the_packaged_blocks_and_demo_process_are_ok(capsys, builder):
+    files = sorted((ROOT / "malcolm/blocks").rglob("*.yaml"))
+    if not files:
+        pytest.skip("no definitions in malcolm/blocks yet")
+    status, out, err = run(capsys, *files)
+    assert (status, out) == (0, []), err
