@@ -373,6 +373,7 @@ class _Builder:
                     f"mri '{mri}' is built twice (first at {first.file}:{first.line})",
                 )
             seen[mri] = built
+        self.problems.problems.sort(key=lambda p: (p.file, p.line))
         self.problems.raise_if_any()
         for built in self.built:
             self.process.add_controller(built.controller)

@@ -241,7 +241,9 @@ class CAEnumPart(CAPart):
     ) -> None:
         if choices is None:
             choices = ["0", "1"]
-        if isinstance(choices, str) or not all(isinstance(c, str) for c in choices):
+        if not isinstance(choices, list | tuple) or not all(
+            isinstance(c, str) for c in choices
+        ):
             raise ValueError(f"choices must be a list of text, not {choices!r}")
         if len(set(choices)) != len(choices) or not choices:
             raise ValueError(f"choices must be different and not empty: {choices}")
