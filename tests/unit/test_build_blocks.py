@@ -7,7 +7,12 @@ import pytest
 
 from malcolm.config.build import build_block, build_definition
 from malcolm.config.builtin import AreaDetectorController, GenericScanController
-from malcolm.config.definitions import expand, find_definition, load_definition
+from malcolm.config.definitions import (
+    available_definitions,
+    expand,
+    find_definition,
+    load_definition,
+)
 from malcolm.controllers.stateful import StatefulController
 from malcolm.core import (
     ChoiceMeta,
@@ -216,3 +221,39 @@ def test_pos_plugin_part_runs_a_scan_on_the_simulated_manager():
         await process.stop()
 
     run(scenario())
+
+
+PACKAGE_VALUES = {
+    "ADCore.NDPosPlugin": {"prefix": "BL"},
+    "ADCore.SimDetector": {"prefix": "BL"},
+    "demo.Scan": {"det1": "D1", "det2": "D2", "x": "X", "y": "Y"},
+}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        n
+        for n in available_definitions()
+        # demo/process.yaml is the demo's process file, not a definition
+        if n.split(".")[0] in ("ADCore", "demo") and n != "demo.process"
+    ],
+)
+def test_every_package_definition_builds(name):
+    process = build_definition(name, PACKAGE_VALUES.get(name, {}), "TOP")
+    assert "TOP" in process.mris
+
+
+def test_nd_pos_plugin_has_the_fields_pos_plugin_part_uses():
+    process = build_definition("ADCore.NDPosPlugin", {"prefix": "BL"}, "POS")
+    block = process.get_block("POS")
+    assert set(PositionPlugin.fields) <= set(block)
+    sim = build_definition("ADCore.SimPositionPlugin", {}, "SIM").get_block("SIM")
+    assert set(PositionPlugin.fields) <= set(sim)
+    parts = process.get_controller("POS").parts
+    assert (parts["idStart"].pv, parts["idStart"].rbv) == (
+        "BL:POS:IDStart",
+        "BL:POS:IDStart_RBV",
+    )
+    assert (parts["positions"].pv, parts["positions"].rbv) == (None, "BL:POS:Qty")
+    assert not block.positions.meta.writeable and block.start.meta.writeable
