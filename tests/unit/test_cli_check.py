@@ -342,3 +342,10 @@ def test_the_packaged_blocks_and_demo_process_are_ok(capsys, builder):
         pytest.skip("no definitions in malcolm/blocks yet")
     status, out, err = run(capsys, *files)
     assert (status, out) == (0, []), err
+
+
+def test_model_with_a_character_yaml_forbids(capsys, tmp_path):
+    model = write(tmp_path / "m.yaml", "name: M\n# \x1f\nstates: {}\n")
+    status, out, _ = run(capsys, model)
+    assert status == 1
+    assert out[0].startswith(f"{model}:2: bad YAML:")
