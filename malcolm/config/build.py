@@ -104,6 +104,8 @@ class _Builder:
         self.built: list[_Built] = []
         #: mris that will exist once the build is added to the process
         self.made = set(planned) | set(process.mris)
+        #: definitions whose stand-ins are being built (to stop cycles)
+        self.standing: list[str] = []
 
     # ---- blocks
     def block(self, expanded: ExpandedBlock, file: str, line: int) -> Controller | None:
@@ -181,6 +183,22 @@ class _Builder:
 
     def standin(self, client: ClientRef) -> None:
         """Make a soft block of the client's definition at its fullname."""
+        if client.definition in self.standing:
+            self.problems.add(
+                client.file,
+                client.line,
+                f"cannot make a stand-in for '{client.fullname}': "
+                f"{client.definition} needs stand-ins of itself "
+                f"({' -> '.join([*self.standing, client.definition])})",
+            )
+            return
+        self.standing.append(client.definition)
+        try:
+            self._standin(client)
+        finally:
+            self.standing.pop()
+
+    def _standin(self, client: ClientRef) -> None:
         try:
             path = find_definition(
                 client.definition, self.search_path, file=client.file, line=client.line
@@ -233,7 +251,7 @@ class _Builder:
         except ConfigError as error:
             self.problems.problems.extend(error.problems)
             return item
-        if "name" not in kwargs and _takes(item.factory, "name"):
+        if "name" not in kwargs and _needs(item.factory, "name"):
             base = split_kind(section.kind)[1].rpartition(":")[2].rpartition(".")[2]
             names[base] = names.get(base, 0) + 1
             kwargs["name"] = base if names[base] == 1 else f"{base}{names[base]}"
@@ -379,12 +397,16 @@ class _Builder:
             self.process.add_controller(built.controller)
 
 
-def _takes(factory: Callable[..., Any], name: str) -> bool:
+def _needs(factory: Callable[..., Any], name: str) -> bool:
+    """True if ``factory`` has a keyword ``name`` without a default."""
     try:
         params = inspect.signature(factory).parameters
     except (TypeError, ValueError):
         return False
-    return name in params and params[name].kind in _KEYWORDS
+    param = params.get(name)
+    return (
+        param is not None and param.kind in _KEYWORDS and param.default is param.empty
+    )
 
 
 def _name(factory: Callable[..., Any]) -> str:

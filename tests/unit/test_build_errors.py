@@ -261,3 +261,21 @@ def test_a_new_process_is_not_returned_on_error(tmp_path):
         ]
         or "unknown parameter 'greeting'" in problems(info, tmp_path)[0]
     )
+
+
+def test_a_stand_in_that_needs_itself(tmp_path, process):
+    write(
+        tmp_path,
+        "lab/Loop.yaml",
+        """\
+        client.lab.Loop:
+            name: next
+            fullname: {mri}:next
+        """,
+    )
+    with pytest.raises(ConfigError) as info:
+        build_definition("lab.Loop", {}, "L", [tmp_path], process=process)
+    assert problems(info, tmp_path) == [
+        "lab/Loop.yaml:1: cannot make a stand-in for 'L:next:next': lab.Loop "
+        "needs stand-ins of itself (lab.Loop -> lab.Loop)"
+    ]
