@@ -66,7 +66,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
     """Build the blocks of a process file and serve them until signalled."""
     import asyncio
     import logging
+    from pathlib import Path
 
+    from malcolm.checker import default_search_path
     from malcolm.config import ConfigError
     from malcolm.embed import from_file, serve
 
@@ -75,8 +77,11 @@ def cmd_serve(args: argparse.Namespace) -> int:
         stream=sys.stderr,
         format="%(asctime)s %(levelname)s %(message)s",
     )
+    if not args.verbose:  # the state-machine library narrates every callback
+        logging.getLogger("transitions").setLevel(logging.WARNING)
     try:
-        process = from_file(args.file, args.search_path)
+        search_path = default_search_path(Path(args.file), args.search_path)
+        process = from_file(args.file, search_path)
     except ConfigError as e:
         for problem in e.problems:
             print(problem, file=sys.stderr)
@@ -182,7 +187,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="serve the blocks of a process file",
         description=(
             "Build every block of PROCESS (a process file), start them, log each "
-            "state change, and run until SIGINT or SIGTERM."
+            "state change, and run until SIGINT or SIGTERM. Definitions are "
+            "looked for in malcolm/blocks, each -I DIR, then a blocks/ directory "
+            "next to PROCESS or its parent directory."
         ),
     )
     serve.add_argument("file", metavar="PROCESS")

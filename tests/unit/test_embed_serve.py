@@ -143,9 +143,14 @@ def process_file(tmp_path):
     return proc
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_serve_logs_state_changes_and_stops_cleanly(process_file, tmp_path, sig):
-    p = start_serve(str(process_file), "-I", str(tmp_path / "blocks"), cwd=tmp_path)
+@pytest.mark.parametrize(
+    ("sig", "options"),
+    [(signal.SIGINT, ["-I", "blocks"]), (signal.SIGTERM, [])],  # blocks/ found
+)
+def test_serve_logs_state_changes_and_stops_cleanly(
+    process_file, tmp_path, sig, options
+):
+    p = start_serve(str(process_file), *options, cwd=tmp_path)
     try:
         lines = read_until(p.stdout, "Ctrl-C", timeout=60)
         assert any("Ctrl-C" in line for line in lines), (lines, p.poll())
@@ -162,3 +167,4 @@ def test_serve_logs_state_changes_and_stops_cleanly(process_file, tmp_path, sig)
     assert "T:HELLO: Resetting -> Ready" in err
     assert "T:COUNTER: Resetting -> Ready" in err
     assert "Traceback" not in err
+    assert "Finished processing state" not in err  # transitions' chatter
