@@ -8,6 +8,7 @@ XML; before the driver starts it subscribes to ``positions`` (loading
 ``batch`` more whenever fewer than ``batch`` are left), puts ``start`` and
 waits for ``running``; at Running it waits for the ``start`` put to complete
 (the plugin's put-callback ends with the acquisition) and unsubscribes.
+At Abort it unsubscribes and stops the plugin if it is running.
 """
 
 from __future__ import annotations
@@ -91,6 +92,14 @@ class PosPluginPart(ChildPart):
             if self._load_id is not None:
                 task.unsubscribe(self._load_id)
                 self._load_id = None
+
+    @AreaDetectorRunnableDevice.Abort
+    async def abort(self, task: Task, device: Any) -> None:
+        if self._load_id is not None:
+            task.unsubscribe(self._load_id)
+            self._load_id = None
+        if self.child.running.value:
+            await task.put(self.child.start, False)
 
 
 class DriverRunPart(ChildPart):

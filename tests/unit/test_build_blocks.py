@@ -15,6 +15,7 @@ from malcolm.config.definitions import (
 )
 from malcolm.controllers.stateful import StatefulController
 from malcolm.core import (
+    AbortedError,
     ChoiceMeta,
     NotWriteableError,
     NumberMeta,
@@ -257,3 +258,44 @@ def test_nd_pos_plugin_has_the_fields_pos_plugin_part_uses():
     )
     assert (parts["positions"].pv, parts["positions"].rbv) == (None, "BL:POS:Qty")
     assert not block.positions.meta.writeable and block.start.meta.writeable
+
+
+def test_abort_stops_the_simulated_position_plugin():
+    process = build_definition("ADCore.SimDetectorManager", {}, "SIM:DET")
+    generator = {
+        "typeid": "scanpointgenerator:generator/CompoundGenerator:1.0",
+        "generators": [
+            {
+                "typeid": "scanpointgenerator:generator/LineGenerator:1.0",
+                "axes": ["x"],
+                "units": ["mm"],
+                "start": [0],
+                "stop": [1],
+                "size": 100000,
+                "alternate": False,
+            }
+        ],
+        "excluders": [],
+        "mutators": [],
+        "duration": 0.001,
+    }
+
+    async def scenario():
+        await process.start()
+        await process.post(["SIM:DET", "configure"], {"generator": generator})
+        running = asyncio.ensure_future(process.post(["SIM:DET", "run"]))
+        pos = process.get_block("SIM:DET:pos")
+        while pos.processed.value < 20:
+            await asyncio.sleep(0.005)
+        await process.post(["SIM:DET", "abort"])
+        with pytest.raises(AbortedError):
+            await running
+        assert process.get_block("SIM:DET").state.value == "Aborted"
+        assert pos.running.value is False
+        stopped_at = pos.processed.value
+        await asyncio.sleep(0.05)
+        assert pos.processed.value == stopped_at
+        assert not process._subs.get("SIM:DET:pos")
+        await process.stop()
+
+    run(scenario())
