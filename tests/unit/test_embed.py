@@ -250,3 +250,12 @@ def test_from_file(tmp_path):
     proc.write_text("block.t.Hello:\n    mri: T:HELLO\n")
     with ThreadedProcess.from_file(str(proc), [str(blocks)]) as tp:
         assert tp.block("T:HELLO").greet(name="f") == {"greeting": "Hello f"}
+
+
+def test_metas_and_dicts(tp):
+    counter = tp.block("COUNTER")
+    assert counter.counter.meta["writeable"] is True
+    assert "takes" in tp.block("HELLO").greet.meta
+    assert set(counter.to_dict()) >= {"counter", "delta", "increment"}
+    assert "counter" in dir(counter)
+    assert repr(counter) == "<BlockProxy COUNTER>"
