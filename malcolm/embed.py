@@ -38,6 +38,7 @@ from contextlib import asynccontextmanager
 from typing import Any, TypeVar
 
 from malcolm.core import (
+    AbortedError,
     Attribute,
     BadValueError,
     Method,
@@ -65,6 +66,9 @@ log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 _STOP = object()
+
+#: Seconds that calls still running when a ThreadedProcess stops get to finish.
+SHUTDOWN_GRACE = 1.0
 
 
 def from_file(
@@ -214,6 +218,11 @@ class ThreadedProcess:
         ready.set()
         try:
             loop.run_forever()
+            # let calls that process.stop() interrupted finish (with their
+            # AbortedError) before cancelling whatever is left
+            tasks = [t for t in asyncio.all_tasks(loop) if not t.done()]
+            if tasks:
+                loop.run_until_complete(asyncio.wait(tasks, timeout=SHUTDOWN_GRACE))
             tasks = [t for t in asyncio.all_tasks(loop) if not t.done()]
             for t in tasks:
                 t.cancel()
@@ -273,6 +282,10 @@ class ThreadedProcess:
             raise
         try:
             return future.result(timeout)
+        except concurrent.futures.CancelledError:
+            raise AbortedError(
+                f"{self.process.name}: {what} was cancelled (the process stopped)"
+            ) from None
         except concurrent.futures.TimeoutError:
             if not future.done():
                 future.cancel()

@@ -259,3 +259,28 @@ def test_metas_and_dicts(tp):
     assert set(counter.to_dict()) >= {"counter", "delta", "increment"}
     assert "counter" in dir(counter)
     assert repr(counter) == "<BlockProxy COUNTER>"
+
+
+def test_stop_during_a_call_aborts_the_caller():
+    tp = start_process(demo_process())
+    scan = tp.block("SCAN")
+    scan.configure(generator=demo_generator(20, 20, 0.05))
+    run = scan.run.future()
+    scan.state.when("Running", timeout=5)
+    tp.stop(timeout=10)
+    with pytest.raises(AbortedError):
+        run.result(5)
+
+
+def test_a_process_that_fails_to_start_leaves_no_thread():
+    from malcolm.core import Process
+
+    class Broken(Process):
+        async def start(self):
+            raise RuntimeError("no hardware")
+
+    tp = ThreadedProcess(Broken("broken"))
+    with pytest.raises(RuntimeError, match="no hardware"):
+        tp.start()
+    assert tp._thread is None and not tp.started
+    assert not [t for t in threading.enumerate() if t.name.startswith("malcolm-broken")]
