@@ -99,6 +99,9 @@ class Controller:
         self.parts: dict[str, Part] = {}
         self.hooks: dict[str, list[Hook]] = {}
         self.tasks: dict[str, Task] = {}
+        self._registrars: dict[str, PartRegistrar] = {}
+        #: parts whose hooks do not run (e.g. children hidden in the palette)
+        self.inactive: set[str] = set()
         self.device = Device(self)
         self._fsm = _Guards(self)
         self._machine = self.model.build_machine(self._fsm)
@@ -146,7 +149,9 @@ class Controller:
         if part.name in self.parts:
             raise ValueError(f"{self.mri}: two parts are called {part.name!r}")
         self.parts[part.name] = part
-        part.setup(PartRegistrar(self, part))
+        registrar = PartRegistrar(self, part)
+        self._registrars[part.name] = registrar
+        part.setup(registrar)
         for phase, func in part.hook_functions():
             if phase not in self.model.phases:
                 raise ValueError(
@@ -157,10 +162,27 @@ class Controller:
         if self.process is not None:
             self.tasks[part.name] = Task(self.process, part.name, self._on_progress)
 
+    def remove_part(self, name: str) -> None:
+        """Take a part out: its hooks, the fields and arguments it added, its task."""
+        self.parts.pop(name)
+        registrar = self._registrars.pop(name)
+        for phase in list(self.hooks):
+            self.hooks[phase] = [h for h in self.hooks[phase] if h.part != name]
+        for field in registrar.fields:
+            self.block.remove(field)
+        for arg in registrar.configure_args:
+            self.remove_configure_arg(arg)
+        task = self.tasks.pop(name, None)
+        if task is not None:
+            task.stop()
+
     def add_configure_arg(
         self, name: str, meta: Any, default: Any, required: bool
     ) -> None:
         raise ValueError(f"{self.mri}: only runnable blocks take configure arguments")
+
+    def remove_configure_arg(self, name: str) -> None:
+        """Undo add_configure_arg (runnable blocks)."""
 
     def _on_progress(self, part: str, steps: int) -> None:
         """Runnable controllers track progress; others ignore it."""
@@ -220,13 +242,21 @@ class Controller:
         await self.fire(trigger)
         await self.settle()
 
-    async def run_phase(self, phase: str) -> dict[str, Any]:
+    async def run_phase(
+        self, phase: str, device: Device | None = None
+    ) -> dict[str, Any]:
+        """Run ``phase``; hooks get ``device`` (by default the block's own)."""
+        device = device or self.device
         await self.before_phase(phase)
         timeout = self.phase_timeouts.get(phase, self.phase_timeout)
         results = await run_phase(
-            phase, self.hooks.get(phase, ()), self.tasks, self.device, timeout
+            phase,
+            [h for h in self.hooks.get(phase, ()) if h.part not in self.inactive],
+            self.tasks,
+            device,
+            timeout,
         )
-        self.device.part_info[phase] = results
+        device.part_info[phase] = results
         await self.after_phase(phase, results)
         return results
 

@@ -22,6 +22,10 @@ class PartRegistrar:
     def __init__(self, controller: Controller, part: Part) -> None:
         self.controller = controller
         self.part = part
+        #: names of the block fields this part added (removed with the part)
+        self.fields: list[str] = []
+        #: configure arguments this part added
+        self.configure_args: list[str] = []
 
     @property
     def mri(self) -> str:
@@ -39,6 +43,7 @@ class PartRegistrar:
             meta.writeable = True
         attr = Attribute(name, meta, value, put_handler=put)
         self.controller.block.add(attr)
+        self.fields.append(name)
         return attr
 
     def add_method(
@@ -53,6 +58,7 @@ class PartRegistrar:
         meta = meta or method_meta_from(func, returns)
         method = Method(name, meta, func)
         self.controller.block.add(method)
+        self.fields.append(name)
         return method
 
     def add_configure_arg(
@@ -60,6 +66,7 @@ class PartRegistrar:
     ) -> None:
         """Add an argument to configure() and validate() (runnable blocks)."""
         self.controller.add_configure_arg(name, meta, default, required)
+        self.configure_args.append(name)
 
 
 class Part:

@@ -58,10 +58,16 @@ PUTS = {
     "design": ({"Ready"}, "load"),
     "layout": ({"Ready"}, None),
     "exports": ({"Ready"}, None),
+    # beyond the interop table: the editor's follower table
+    "followers": ({"Ready"}, None),
 }
-# Beyond the interop table: validate never moves; disable wherever it can.
+# Beyond the interop table: validate never moves; disable wherever it can;
+# the editor's calls (load, set_visible, set_position) only in Ready.
 EXTRA_CALLS = {
     "validate": {"Ready", "Finished", "Armed"},
+    "load": {"Ready"},
+    "set_visible": {"Ready"},
+    "set_position": {"Ready"},
     "disable": {s for s, dests in MOVES.items() if "Disabling" in dests},
 }
 
