@@ -194,7 +194,9 @@ def _check(
     result: CheckResult,
 ) -> None:
     if path.is_dir():
-        result.problems.append(Finding(file, None, "is a directory, not a file"))
+        empty = expand_files([file]) == [file]
+        what = "a directory with no YAML files" if empty else "a directory, not a file"
+        result.problems.append(Finding(file, None, what))
         return
     try:
         data = path.read_bytes()
@@ -364,6 +366,27 @@ def _findings_of(problems: Iterable[Any], file: str) -> list[Finding]:
     return [Finding(str(p.file or file), p.line, str(p.message)) for p in problems]
 
 
+def expand_files(paths: Iterable[str]) -> list[str]:
+    """``paths`` with each directory replaced by the YAML files under it
+    (sorted; a directory with none stays, to be reported)."""
+    files: list[str] = []
+    for p in paths:
+        path = Path(p)
+        found = []
+        try:
+            if path.is_dir():
+                found = sorted(
+                    str(f)
+                    for pattern in ("*.yaml", "*.yml")
+                    for f in path.rglob(pattern)
+                    if f.is_file()
+                )
+        except OSError:
+            found = []
+        files += found or [str(p)]
+    return files
+
+
 def _emit(line: str, stream: TextIO) -> None:
     """Write a line even if the stream cannot encode every character."""
     try:
@@ -385,6 +408,7 @@ def run_check(
     out = out or sys.stdout
     err = err or sys.stderr
     bad = total = 0
+    files = expand_files(files)
     for f in files:
         result = check_file(f, search_path, kind)
         for problem in result.problems:

@@ -238,13 +238,14 @@ def test_a_broken_design(capsys, tmp_path):
 
 def test_missing_file_directory_and_non_yaml(capsys, tmp_path):
     missing = tmp_path / "missing.yaml"
+    (tmp_path / "d").mkdir()
     binary = tmp_path / "binary.yaml"
     binary.write_bytes(b"init.String:\n  name: \xff\xfe\n")
     garbage = write(tmp_path / "garbage.yaml", "a: b\n  c: [d\n\t}\n")
-    status, out, err = run(capsys, missing, tmp_path, binary, garbage)
+    status, out, err = run(capsys, missing, tmp_path / "d", binary, garbage)
     assert status == 1
     assert out[0] == f"{missing}: cannot read file: No such file or directory"
-    assert out[1] == f"{tmp_path}: is a directory, not a file"
+    assert out[1] == f"{tmp_path / 'd'}: a directory with no YAML files"
     assert out[2].startswith(f"{binary}:2: file is not UTF-8")
     assert out[3].startswith(f"{garbage}:") and "YAML error" in out[3]
     assert "4 problems in 4 of 4 files" in err
@@ -349,3 +350,13 @@ def test_model_with_a_character_yaml_forbids(capsys, tmp_path):
     status, out, _ = run(capsys, model)
     assert status == 1
     assert out[0].startswith(f"{model}:2: bad YAML:")
+
+
+def test_directories_are_checked_file_by_file(capsys, tmp_path):
+    write(tmp_path / "blocks/t/Good.yaml", "init.String:\n    name: a\n")
+    write(tmp_path / "blocks/t/Bad.yml", "init.Int:\n    name: n\n    default: x\n")
+    write(tmp_path / "blocks/notes.txt", "not checked\n")
+    status, out, err = run(capsys, tmp_path / "blocks")
+    assert status == 1
+    assert out == [f"{tmp_path}/blocks/t/Bad.yml:3: default 'x' is not an Int"]
+    assert "1 problem in 1 of 2 files" in err
