@@ -215,7 +215,7 @@ class ThreadedProcess:
         loop = asyncio.new_event_loop()
         asyncio.set_event_loop(loop)
         self.loop = loop
-        ready.set()
+        loop.call_soon(ready.set)  # once the loop is running
         try:
             loop.run_forever()
             # let calls that process.stop() interrupted finish (with their
