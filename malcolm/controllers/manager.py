@@ -1,42 +1,527 @@
-"""ManagerController: the manager model's states (Saving, Loading) and calls.
+"""ManagerController: a block that manages children through a design.
 
-The Editor (designs, the export, follower and fixed tables) builds on this.
+The Editor's fields live on the manager's own structure, where pymalcolm
+clients look for them: ``design`` (put = load), ``modified``, ``layout``
+(the palette), ``exports``, ``followers`` and ``model``; methods ``save``,
+``load``, ``set_visible`` and ``set_position``. Each export, follower and
+fixed row becomes a part (``malcolm.editor.runtime``). A followed or fixed
+child attribute that changes by any other hand puts the manager in Fault,
+naming it; reset writes the design's values back.
 """
 
 from __future__ import annotations
 
+import asyncio
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
-from malcolm.core import ChoiceMeta, MapMeta, MethodMeta, StringMeta
+from malcolm.core import (
+    Attribute,
+    BadValueError,
+    BooleanMeta,
+    ChoiceMeta,
+    MapMeta,
+    Method,
+    MethodMeta,
+    NumberMeta,
+    StringMeta,
+)
+from malcolm.editor import tables
+from malcolm.editor.runtime import (
+    EditorPart,
+    ExportRuntime,
+    FixedRuntime,
+    FollowerRuntime,
+    RunnableExportRuntime,
+)
+from malcolm.editor.store import DesignStore
+from malcolm.parts.base import ChildPart
+from malcolm.parts.design import (
+    Design,
+    ExportPart,
+    FixedBool,
+    FixedEnum,
+    FixedFloat,
+    FixedInt,
+    FixedString,
+    FixedTable,
+    FollowerPart,
+    ModelPart,
+    PalettePart,
+)
 
 from .base import Controller
 
+#: states where a followed or fixed child that drifts sends the manager to Fault
+QUIET_STATES = {"Disabled", "Disabling", "Fault", "Resetting", "Loading"}
+FIXED_KINDS = {
+    "fixed.Int": FixedInt,
+    "fixed.Float": FixedFloat,
+    "fixed.String": FixedString,
+    "fixed.Bool": FixedBool,
+    "fixed.Enum": FixedEnum,
+    "fixed.Table": FixedTable,
+}
+
+
+def _s(name: str, description: str) -> StringMeta:
+    return StringMeta(description, writeable=True)
+
 
 class ManagerController(Controller):
-    """Adds ``save(design)`` and a ``design`` attribute whose put loads."""
+    """Interprets the ``manager`` model and gives it an Editor."""
 
     model_name = "manager"
 
+    def __init__(
+        self,
+        mri: str,
+        parts: Sequence[Any] = (),
+        description: str = "",
+        designs_dir: str | Path | None = None,
+        template_dirs: Sequence[str | Path] = (),
+        initial_design: str = "",
+        **kwargs: Any,
+    ) -> None:
+        self.designs_dir = designs_dir
+        self.template_dirs = list(template_dirs)
+        self.initial_design = initial_design
+        self.store: DesignStore | None = None
+        self.editor_parts: list[EditorPart] = []
+        self.fixed_records: list[Any] = []
+        self.model_value = ""
+        self.following = True
+        self.background: set[asyncio.Future[Any]] = set()
+        super().__init__(mri, parts, description, **kwargs)
+        self.layout.set_value(self._default_layout())
+
+    # ---- fields
     def setup_fields(self) -> None:
         super().setup_fields()
         self.design = self._add_attr(
-            "design", ChoiceMeta([""], "Design loaded", writeable=True)
+            "design", ChoiceMeta([""], "Design loaded (put to load another)")
         )
-        self.saved: dict[str, Any] = {}
+        self.modified = self._add_attr(
+            "modified", BooleanMeta("Whether settings differ from the design")
+        )
+        self.layout = self._add_attr("layout", tables.layout_meta())
+        self.exports = self._add_attr("exports", tables.exports_meta())
+        self.followers = self._add_attr("followers", tables.followers_meta())
+        self.model_attr = self._add_attr(
+            "model", StringMeta("The model this block conforms to (metaOf)")
+        )
 
     def method_meta_save(self) -> MethodMeta:
         return MethodMeta(
-            MapMeta({"design": StringMeta("Name of the design", writeable=True)}),
+            MapMeta({"design": _s("design", "Name to save the design as")}),
             description="Save the current settings as a design",
             defaults={"design": ""},
         )
 
-    async def do_save(self, design: str = "") -> None:
-        """Save the current settings as a design."""
-        self.device.params = {"design": design or self.design.value}
-        await self.operation("save", self._transition_and_settle("save"))
+    def method_meta_load(self) -> MethodMeta:
+        return MethodMeta(
+            MapMeta({"design": _s("design", "Design to load")}, ["design"]),
+            description="Load a design",
+        )
 
-    async def put_design(self, design: str) -> None:
-        self.device.params = {"design": design}
-        await self.operation("load", self._transition_and_settle("load"))
-        self.design.set_value(design)
+    def method_meta_set_visible(self) -> MethodMeta:
+        return MethodMeta(
+            MapMeta(
+                {
+                    "block_name": _s("block_name", "Child name"),
+                    "visible": BooleanMeta("Active or not", writeable=True),
+                },
+                ["block_name", "visible"],
+            ),
+            description="Show (activate) or hide a child; the manager is disabled",
+        )
+
+    def method_meta_set_position(self) -> MethodMeta:
+        return MethodMeta(
+            MapMeta(
+                {
+                    "block_name": _s("block_name", "Child name"),
+                    "x": NumberMeta("float64", "X", writeable=True),
+                    "y": NumberMeta("float64", "Y", writeable=True),
+                },
+                ["block_name", "x", "y"],
+            ),
+            description="Move a child on the canvas",
+        )
+
+    # ---- children
+    @property
+    def children(self) -> dict[str, str]:
+        """Child name -> mri, from the manager's child parts."""
+        return {
+            name: part.mri
+            for name, part in self.parts.items()
+            if isinstance(part, ChildPart)
+        }
+
+    def resolve(self, dotted: str) -> tuple[str, str]:
+        """``CHILD.FIELD`` -> (child mri, field), or BadValueError."""
+        child, sep, field = str(dotted).partition(".")
+        if not sep or not child or not field:
+            raise BadValueError(f"{self.mri}: {dotted!r} is not CHILD.FIELD")
+        mri = self.children.get(child)
+        if mri is None:
+            known = ", ".join(self.children) or "none"
+            raise BadValueError(
+                f"{self.mri}: {dotted!r} names child {child!r}, which it does not"
+                f" have (children: {known})"
+            )
+        self.child_field(mri, field, dotted)
+        return mri, field
+
+    def child_field(self, mri: str, field: str, dotted: str = "") -> Attribute | Method:
+        assert self.process is not None, f"{self.mri} is not in a process"
+        block = self.process.get_block(mri)
+        if field not in block:
+            raise BadValueError(
+                f"{self.mri}: {dotted or mri + '.' + field!r} names field {field!r},"
+                f" which {mri} does not have"
+            )
+        return block[field]  # type: ignore[return-value]
+
+    def _default_layout(self) -> dict[str, Any]:
+        return tables.columns(
+            self.layout.meta,
+            [
+                {"name": n, "mri": m, "x": 0.0, "y": 0.0, "visible": True}
+                for n, m in self.children.items()
+            ],
+        )
+
+    # ---- lifecycle
+    async def start(self) -> None:
+        assert self.process is not None
+        base = self.designs_dir or getattr(self.process, "designs_dir", None)
+        self.store = DesignStore(
+            self.mri, base or Path.cwd() / "designs", self.template_dirs
+        )
+        self.layout.set_value(self._default_layout())
+        self._refresh_choices()
+        await super().start()
+        if self.initial_design:
+            await self.put("design", self.initial_design)
+
+    async def stop(self) -> None:
+        for part in self.editor_parts:
+            part.detach()
+        for fut in list(self.background):
+            fut.cancel()
+        await super().stop()
+
+    def _refresh_choices(self) -> None:
+        assert self.store is not None
+        choices = ["", *self.store.names()]
+        if tuple(choices) != self.design.meta.choices:
+            self.design.meta.choices = tuple(choices)
+            self.block.notify([[["design", "meta", "choices"], choices]])
+
+    # ---- drift: Fault exactly when a followed or fixed child differs
+    def verify(self, part: EditorPart) -> None:
+        if part.pending or self.current in QUIET_STATES:
+            return
+        if part not in self.editor_parts:
+            return
+        message = part.mismatch()
+        if message:
+            self.fault_now(message)
+
+    def verify_all(self) -> None:
+        for part in list(self.editor_parts):
+            self.verify(part)
+
+    def fault_now(self, message: str) -> None:
+        if self.current == "Fault":
+            return
+        for task in self.tasks.values():
+            task.stop()
+        from malcolm.core import Alarm
+
+        self.health.set_value(f"{self.mri}: {message}", alarm=Alarm.major(message))
+        if self.model.transitions_for("fault", self.current):
+            op = self._op
+            if op is not None and not op.done():
+                op.cancel()
+            self.move("fault")
+
+    def move(self, trigger: str) -> None:
+        super().move(trigger)
+        if self.current not in QUIET_STATES and trigger == "done":
+            self.verify_all()
+
+    # ---- the design as parts
+    def _records_from_tables(
+        self,
+        exports: list[dict[str, Any]] | None = None,
+        followers: list[dict[str, Any]] | None = None,
+    ) -> list[Any]:
+        ex = exports if exports is not None else tables.rows(self.exports.value)
+        fo = followers if followers is not None else tables.rows(self.followers.value)
+        return [
+            *(ExportPart(r["name"], r["source"], r.get("description", "")) for r in ex),
+            *(FollowerPart(r["name"], r["source"]) for r in fo),
+        ]
+
+    def _build_parts(self, records: list[Any]) -> list[EditorPart]:
+        """Make (not add) the parts of a design; BadValueError naming each problem."""
+        problems: list[str] = []
+        made: list[EditorPart] = []
+        exports: set[str] = set()
+        export_cls = (
+            RunnableExportRuntime if "Configure" in self.model.phases else ExportRuntime
+        )
+        taken = set(self.block) - {p.field for p in self._of(ExportRuntime)}
+        for r in records:
+            try:
+                if isinstance(r, ExportPart):
+                    if not r.name.isidentifier() or r.name in taken | exports:
+                        raise BadValueError(
+                            f"{self.mri}: export name {r.name!r} is not a free field"
+                            " name"
+                        )
+                    made.append(export_cls(r.name, r.source, r.description, self))
+                    exports.add(r.name)
+                elif isinstance(r, FollowerPart):
+                    if r.source not in exports and r.source not in self.block:
+                        raise BadValueError(
+                            f"{self.mri}: follower {r.name} follows {r.source!r},"
+                            " which is not a field of the manager"
+                        )
+                    made.append(FollowerRuntime(r.name, r.source, self))
+                elif type(r) in FIXED_KINDS.values():
+                    kind = next(k for k, c in FIXED_KINDS.items() if c is type(r))
+                    made.append(FixedRuntime(r.name, r.value, kind, self))
+            except BadValueError as e:
+                problems.append(str(e))
+        if problems:
+            raise BadValueError("\n".join(problems))
+        return made
+
+    def _of(self, cls: type) -> list[Any]:
+        return [p for p in self.editor_parts if isinstance(p, cls)]
+
+    def _install(self, parts: list[EditorPart]) -> None:
+        for old in self.editor_parts:
+            old.detach()
+            self.remove_part(old.name)
+        self.editor_parts = []
+        for part in parts:
+            self.add_part(part)
+            self.editor_parts.append(part)
+        for part in parts:
+            part.attach()
+        self.exports.set_value(
+            [
+                {"name": p.field, "source": p.source, "description": p.description}
+                for p in self._of(ExportRuntime)
+            ]
+        )
+        self.followers.set_value(
+            [{"name": p.target, "source": p.source} for p in self._of(FollowerRuntime)]
+        )
+        self.fixed_records = [
+            FIXED_KINDS[p.kind](p.target, _plain(p.value, p.kind))
+            for p in self._of(FixedRuntime)
+        ]
+
+    def _apply_layout(self, palette: list[PalettePart]) -> None:
+        current = {r["name"]: r for r in tables.rows(self.layout.value)}
+        for row in palette:
+            current[row.name].update(x=row.xcoord, y=row.ycoord, visible=row.visible)
+        self._set_layout(list(current.values()))
+
+    def _set_layout(self, layout_rows: list[dict[str, Any]]) -> None:
+        self.layout.set_value(layout_rows)
+        self.inactive = {r["name"] for r in layout_rows if not r["visible"]}
+
+    def check_design(self, design: Design) -> list[EditorPart]:
+        """Every problem of a design for this manager, before anything changes."""
+        problems = []
+        for record, (file, line) in zip(design.records, design.lines):
+            if isinstance(record, PalettePart) and record.name not in self.children:
+                known = ", ".join(self.children) or "none"
+                problems.append(
+                    f"{file}:{line}: palette names child {record.name!r}, which"
+                    f" {self.mri} does not have (children: {known})"
+                )
+        try:
+            parts = self._build_parts(design.records)
+        except BadValueError as e:
+            problems.extend(f"{design.path}: {p}" for p in str(e).splitlines())
+            parts = []
+        if problems:
+            raise BadValueError("\n".join(problems))
+        return parts
+
+    # ---- load / save / edits
+    async def do_load(self, design: str) -> None:
+        """Load a design (same as a put of ``design``)."""
+        await self.put("design", design)
+
+    async def put(self, name: str, value: Any) -> None:
+        if name == "design" and self.store is not None:
+            self._refresh_choices()  # a design saved by another hand is loadable
+        await super().put(name, value)
+
+    async def put_design(self, name: str) -> None:
+        if not name:
+            raise BadValueError(f"{self.mri}.design: name a design to load")
+        assert self.store is not None
+        design = self.store.load(name)  # ConfigError / BadValueError: nothing changed
+        parts = self.check_design(design)
+
+        async def load() -> None:
+            await self.fire("load")
+            self._install(parts)
+            self._apply_layout(design.palette)
+            for part in parts:
+                if isinstance(part, FixedRuntime | FollowerRuntime):
+                    await part.apply()
+            self.model_value = design.model or ""
+            self.model_attr.set_value(self.model_value)
+            self._set_meta_of(self.model_value)
+            self._refresh_choices()
+            self.design.set_value(name)
+            self.modified.set_value(False)
+            await self.settle()
+
+        await self.operation("load", load())
+
+    def _set_meta_of(self, model: str) -> None:
+        tags = [t for t in self.block.meta.tags if not t.startswith("metaOf:")]
+        if model:
+            tags.append(f"metaOf:{model}")
+        self.block.meta.tags = tuple(tags)
+        self.block.notify([[["meta", "tags"], tags]])
+
+    def design_records(self) -> list[Any]:
+        """What ``save`` writes: model, palette, exports, followers, fixed."""
+        records: list[Any] = []
+        if self.model_value:
+            records.append(ModelPart(self.model_value))
+        for row in tables.rows(self.layout.value):
+            records.append(
+                PalettePart(row["name"], int(row["x"]), int(row["y"]), row["visible"])
+            )
+        records.extend(self._records_from_tables())
+        exported = {p.source for p in self._of(ExportRuntime)}
+        followed = {p.target for p in self._of(FollowerRuntime)}
+        assert self.process is not None
+        for name, mri in self.children.items():
+            block = self.process.get_block(mri)
+            for field, attr in block.attributes.items():
+                dotted = f"{name}.{field}"
+                if not attr.meta.writeable or dotted in exported | followed:
+                    continue
+                kind = fixed_kind(attr)
+                if kind is not None:
+                    records.append(FIXED_KINDS[kind](dotted, _plain(attr.value, kind)))
+        return records
+
+    async def do_save(self, design: str = "") -> None:
+        """Save the current settings as a design (default: the loaded one)."""
+        name = design or self.design.value
+        if not name:
+            raise BadValueError(f"{self.mri}.save: name the design to save")
+        assert self.store is not None
+
+        async def save() -> None:
+            await self.fire("save")
+            records = self.design_records()
+            self.store.save(name, records)
+            fixed = [r for r in records if type(r) in FIXED_KINDS.values()]
+            self._install(self._build_parts(self._records_from_tables() + fixed))
+            self._refresh_choices()
+            self.design.set_value(name)
+            self.modified.set_value(False)
+            await self.settle()
+
+        await self.operation("save", save())
+
+    async def _edit_tables(self, exports=None, followers=None, layout=None) -> None:
+        """Change the tables: the manager goes to Disabled with the new parts."""
+        records = self._records_from_tables(exports, followers) + self.fixed_records
+        parts = self._build_parts(records)  # problems raised before any change
+
+        async def reload() -> None:
+            await self.fire("disable")
+            self._install(parts)
+            if layout is not None:
+                self._set_layout(layout)
+            self.modified.set_value(True)
+            await self.settle()
+
+        await self.operation("disable", reload())
+
+    async def put_exports(self, value: dict[str, Any]) -> None:
+        await self._edit_tables(exports=tables.rows(value))
+
+    async def put_followers(self, value: dict[str, Any]) -> None:
+        await self._edit_tables(followers=tables.rows(value))
+
+    async def put_layout(self, value: dict[str, Any]) -> None:
+        new = tables.rows(value)
+        old = tables.rows(self.layout.value)
+        if [r["name"] for r in new] != [r["name"] for r in old] or [
+            r["mri"] for r in new
+        ] != [r["mri"] for r in old]:
+            raise BadValueError(
+                f"{self.mri}.layout: the names and mris of the children cannot change"
+            )
+        if [r["visible"] for r in new] != [r["visible"] for r in old]:
+            await self._edit_tables(layout=new)
+        else:
+            self._set_layout(new)
+            self.modified.set_value(True)
+
+    async def do_set_visible(self, block_name: str, visible: bool) -> None:
+        """Show (activate) or hide a child; the manager goes through Disabled."""
+        await self.put_layout(self._edited_layout(block_name, visible=visible))
+
+    async def do_set_position(self, block_name: str, x: float, y: float) -> None:
+        """Move a child on the canvas."""
+        await self.put_layout(self._edited_layout(block_name, x=x, y=y))
+
+    def _edited_layout(self, block_name: str, **changes: Any) -> dict[str, Any]:
+        layout_rows = tables.rows(self.layout.value)
+        for row in layout_rows:
+            if row["name"] == block_name:
+                row.update(changes)
+                return tables.columns(self.layout.meta, layout_rows)
+        known = ", ".join(r["name"] for r in layout_rows) or "none"
+        raise BadValueError(f"{self.mri}: no child {block_name!r} (children: {known})")
+
+
+def fixed_kind(attr: Attribute) -> str | None:
+    """The ``fixed.<Type>`` a child attribute saves as (None: not savable)."""
+    from malcolm.core import TableMeta
+
+    meta = attr.meta
+    if isinstance(meta, TableMeta):
+        return "fixed.Table"
+    if isinstance(meta, ChoiceMeta):
+        return "fixed.Enum"
+    if isinstance(meta, BooleanMeta):
+        return "fixed.Bool"
+    if isinstance(meta, StringMeta):
+        return "fixed.String"
+    if isinstance(meta, NumberMeta):
+        return "fixed.Float" if meta.dtype.startswith("float") else "fixed.Int"
+    return None
+
+
+def _plain(value: Any, kind: str) -> Any:
+    if kind == "fixed.Table":
+        columns = list(value)
+        n = len(value[columns[0]]) if columns else 0
+        return [{c: _scalar(value[c][i]) for c in columns} for i in range(n)]
+    return _scalar(value)
+
+
+def _scalar(v: Any) -> Any:
+    return v.item() if hasattr(v, "item") else v

@@ -1,0 +1,2 @@
+"""The Manager's Editor: designs, the palette, and the export, follower and
+fixed tables."""

@@ -1,0 +1,248 @@
+"""The parts a Manager's tables turn into: one per export, follower and fixed row.
+
+- ``ExportRuntime``: a manager field mirroring a child attribute (or
+  method), live; writes to it go to the child.
+- ``FollowerRuntime``: a child attribute set whenever a manager attribute
+  changes; any other change of the child is reported to the manager.
+- ``FixedRuntime``: a child attribute held at a saved value; written on
+  reset and load, any change reported.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import copy
+from typing import TYPE_CHECKING, Any
+
+from malcolm.core import Attribute, Method, Subscription
+from malcolm.fsm import RunnableDevice, Stateful
+from malcolm.hooks import Task
+from malcolm.parts.base import Part, PartRegistrar
+
+if TYPE_CHECKING:
+    from malcolm.controllers.manager import ManagerController
+
+
+def same(a: Any, b: Any) -> bool:
+    """Equality that treats lists and tuples alike (table columns, arrays)."""
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    return a == b
+
+
+class EditorPart(Part):
+    """Base of the table parts: knows its manager and the child field it watches."""
+
+    def __init__(self, name: str, manager: ManagerController) -> None:
+        super().__init__(name)
+        self.manager = manager
+        self.subs: list[Subscription] = []
+        self.pending = 0  # writes of the manager's own still in flight
+
+    def attach(self) -> None:
+        """Subscribe (the process exists and the block is added)."""
+
+    def detach(self) -> None:
+        process = self.manager.process
+        for sub in self.subs:
+            if process is not None:
+                process.unsubscribe(sub)
+        self.subs.clear()
+
+    def mismatch(self) -> str | None:
+        """Why the child differs from what the design says, or None."""
+        return None
+
+    async def write(self, mri: str, field: str, value: Any) -> None:
+        """A write of the manager's own: drift checks wait until it is done."""
+        assert self.manager.process is not None
+        self.pending += 1
+        try:
+            await self.manager.process.put([mri, field], value)
+        finally:
+            self.pending -= 1
+        self.manager.verify(self)
+
+    def on_child_change(self, _value: Any) -> None:
+        if self.pending == 0:
+            self.manager.verify(self)
+
+
+class ExportRuntime(EditorPart):
+    """Row ``name, source, description`` of the export table."""
+
+    def __init__(
+        self, name: str, source: str, description: str, manager: ManagerController
+    ) -> None:
+        super().__init__(f"export:{name}", manager)
+        self.field = name
+        self.source = source
+        self.description = description
+        self.child_mri, self.child_field = manager.resolve(source)
+
+    def child(self) -> Attribute | Method:
+        return self.manager.child_field(self.child_mri, self.child_field)
+
+    def setup(self, registrar: PartRegistrar) -> None:
+        target = self.child()
+        if isinstance(target, Method):
+            meta = copy.deepcopy(target.meta)
+            if self.description:
+                meta.description = self.description
+            registrar.add_method(self.call, self.field, meta)
+            return
+        meta = copy.deepcopy(target.meta)
+        if self.description:
+            meta.description = self.description
+        writeable = target.meta.writeable
+        meta.writeable = writeable
+        self.attr = registrar.add_attribute(
+            self.field, meta, target.value, put=self.put if writeable else None
+        )
+        if writeable and "Configure" in self.manager.model.phases:
+            registrar.add_configure_arg(self.field, copy.deepcopy(meta), None)
+
+    def attach(self) -> None:
+        target = self.child()
+        process = self.manager.process
+        if isinstance(target, Attribute) and process is not None:
+            self.subs.append(
+                process.subscribe(
+                    [self.child_mri, self.child_field, "value"],
+                    self.mirror,
+                    delta=False,
+                )
+            )
+
+    def mirror(self, value: Any) -> None:
+        self.attr.set_value(value, validate=False)
+
+    async def put(self, value: Any) -> None:
+        assert self.manager.process is not None
+        await self.manager.process.put([self.child_mri, self.child_field], value)
+
+    async def call(self, **params: Any) -> Any:
+        assert self.manager.process is not None
+        return await self.manager.process.post(
+            [self.child_mri, self.child_field], params
+        )
+
+
+class RunnableExportRuntime(ExportRuntime):
+    """An export on a runnable manager: a writeable one is a configure argument."""
+
+    @RunnableDevice.Configure
+    async def configure(self, task: Task, device: Any) -> None:
+        value = device.params.get(self.field)
+        if value is not None:
+            await task.put((self.child_mri, self.child_field), value)
+
+
+class FollowerRuntime(EditorPart):
+    """Row ``name, source`` of the follower table: child ``name`` follows ``source``."""
+
+    def __init__(self, name: str, source: str, manager: ManagerController) -> None:
+        super().__init__(f"follower:{name}", manager)
+        self.target = name
+        self.source = source
+        self.child_mri, self.child_field = manager.resolve(name)
+
+    def expected(self) -> Any:
+        return self.manager.block.attribute(self.source).value
+
+    def actual(self) -> Any:
+        return self.manager.child_field(self.child_mri, self.child_field).value
+
+    def attach(self) -> None:
+        process = self.manager.process
+        assert process is not None
+        self.subs.append(
+            process.subscribe(
+                [self.manager.mri, self.source, "value"], self.on_source, delta=False
+            )
+        )
+        self.subs.append(
+            process.subscribe(
+                [self.child_mri, self.child_field, "value"],
+                self.on_child_change,
+                delta=False,
+            )
+        )
+
+    def on_source(self, value: Any) -> None:
+        if self.manager.following and not same(value, self.actual()):
+            self.pending += 1  # counted now: the child changes before the put ends
+            fut = asyncio.ensure_future(self._follow(value))
+            self.manager.background.add(fut)
+            fut.add_done_callback(self.manager.background.discard)
+
+    async def _follow(self, value: Any) -> None:
+        try:
+            await self.write(self.child_mri, self.child_field, value)
+        except Exception as e:
+            self.manager.fault_now(f"{self.target} could not follow {self.source}: {e}")
+        finally:
+            self.pending -= 1
+            self.manager.verify(self)
+
+    def mismatch(self) -> str | None:
+        expected, actual = self.expected(), self.actual()
+        if same(expected, actual):
+            return None
+        return (
+            f"{self.target} follows {self.source}: expected {expected!r},"
+            f" but it is {actual!r}"
+        )
+
+    async def apply(self) -> None:
+        if not same(self.expected(), self.actual()):
+            await self.write(self.child_mri, self.child_field, self.expected())
+
+    @Stateful.Reset
+    async def reset(self, task: Task, device: Any) -> None:
+        await self.apply()
+
+
+class FixedRuntime(EditorPart):
+    """A ``fixed.<Type>`` record: child attribute ``name`` held at ``value``."""
+
+    def __init__(
+        self, name: str, value: Any, kind: str, manager: ManagerController
+    ) -> None:
+        super().__init__(f"fixed:{name}", manager)
+        self.target = name
+        self.kind = kind
+        self.child_mri, self.child_field = manager.resolve(name)
+        self.value = manager.child_field(self.child_mri, self.child_field).validate(
+            value
+        )
+
+    def actual(self) -> Any:
+        return self.manager.child_field(self.child_mri, self.child_field).value
+
+    def attach(self) -> None:
+        process = self.manager.process
+        assert process is not None
+        self.subs.append(
+            process.subscribe(
+                [self.child_mri, self.child_field, "value"],
+                self.on_child_change,
+                delta=False,
+            )
+        )
+
+    def mismatch(self) -> str | None:
+        actual = self.actual()
+        if same(self.value, actual):
+            return None
+        return f"{self.target} is fixed at {self.value!r}, but it is {actual!r}"
+
+    async def apply(self) -> None:
+        if not same(self.value, self.actual()):
+            await self.write(self.child_mri, self.child_field, self.value)
+
+    @Stateful.Reset
+    async def reset(self, task: Task, device: Any) -> None:
+        await self.apply()

@@ -1,0 +1,134 @@
+"""Where a manager's designs live, and how they are written.
+
+Designs are YAML files at ``<designs_dir>/<mri>/<name>.yaml`` in the design
+document's format. Saving is atomic: the text goes to a temporary file in
+the same directory, is flushed to disk, and replaces the old file in one
+``os.replace``, so a crash at any moment leaves the old design or the new
+one. Template designs (shipped read-only examples) are read from other
+directories and can be loaded but never overwritten.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, fields
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from malcolm.core import BadValueError
+from malcolm.parts.design import DESIGN_KINDS, Design, load_design
+
+_KIND_OF = {cls: kind for kind, cls in DESIGN_KINDS.items()}
+NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
+
+
+def dump_design(records: Iterable[Any]) -> str:
+    """The YAML text of design records, one section per record, in order."""
+    chunks = []
+    for record in records:
+        kind = _KIND_OF[type(record)]
+        body = {f.name: getattr(record, f.name) for f in fields(record)}
+        if "description" in body and not body["description"]:
+            del body["description"]
+        text = yaml.safe_dump(
+            body, sort_keys=False, default_flow_style=False, indent=4, width=1000
+        )
+        indented = "".join(f"    {line}\n" for line in text.splitlines())
+        chunks.append(f"{kind}:\n{indented}")
+    return "\n".join(chunks)
+
+
+def atomic_write(path: Path, text: str) -> None:
+    """Replace ``path`` with ``text`` so that readers see old or new, never half."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    dir_fd = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+
+
+class DesignStore:
+    """The designs of one manager: saved ones (writable) and templates (not)."""
+
+    def __init__(
+        self,
+        mri: str,
+        designs_dir: Path | str,
+        template_dirs: Sequence[Path | str] = (),
+    ) -> None:
+        self.mri = mri
+        self.dir = Path(designs_dir) / mri.replace(":", "_")
+        self.template_dirs = [Path(d) for d in template_dirs]
+
+    def _templates(self) -> dict[str, Path]:
+        found: dict[str, Path] = {}
+        for d in self.template_dirs:
+            if d.is_dir():
+                for p in sorted(d.glob("*.yaml")):
+                    found.setdefault(p.stem, p)
+        return found
+
+    def names(self) -> list[str]:
+        """Saved designs then templates, each sorted."""
+        saved = (
+            sorted(p.stem for p in self.dir.glob("*.yaml")) if self.dir.is_dir() else []
+        )
+        return saved + [n for n in self._templates() if n not in saved]
+
+    def is_template(self, name: str) -> bool:
+        return name in self._templates() and not (self.dir / f"{name}.yaml").exists()
+
+    def path(self, name: str) -> Path:
+        if not NAME.match(name or ""):
+            raise BadValueError(
+                f"{self.mri}: {name!r} is not a design name (letters, digits, _ . -)"
+            )
+        saved = self.dir / f"{name}.yaml"
+        if saved.exists():
+            return saved
+        template = self._templates().get(name)
+        if template is not None:
+            return template
+        known = ", ".join(self.names()) or "none"
+        raise BadValueError(f"{self.mri}: no design {name!r} (designs: {known})")
+
+    def load(self, name: str) -> Design:
+        return load_design(self.path(name))
+
+    def save(self, name: str, records: Iterable[Any]) -> Path:
+        if not NAME.match(name or ""):
+            raise BadValueError(
+                f"{self.mri}: {name!r} is not a design name (letters, digits, _ . -)"
+            )
+        if name in self._templates():
+            raise BadValueError(
+                f"{self.mri}: design {name!r} is a read-only template; save under"
+                " another name"
+            )
+        path = self.dir / f"{name}.yaml"
+        atomic_write(path, dump_design(records))
+        return path
+
+
+def records_equal(a: Design, b: Design) -> bool:
+    """Same records in the same order (for tests and ``modified``)."""
+    return [asdict(r) for r in a.records] == [asdict(r) for r in b.records]
