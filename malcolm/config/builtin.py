@@ -72,8 +72,8 @@ class AreaDetectorController(RunnableController):
         **kwargs: Any,
     ) -> None:
         kwargs.setdefault("model", "area_detector_runnable_device")
-        #: the design the definition asks for (loaded by the Editor, later)
-        self.initial_design = design
+        # the design the definition asks for: loaded at start if it exists
+        kwargs.setdefault("initial_design", design)
         super().__init__(mri, parts, description, **kwargs)
 
 

@@ -12,7 +12,8 @@ naming it; reset writes the design's values back.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Sequence
+import logging
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +37,7 @@ from malcolm.editor.runtime import (
     RunnableExportRuntime,
 )
 from malcolm.editor.store import DesignStore
+from malcolm.fsm import Model
 from malcolm.parts.base import ChildPart
 from malcolm.parts.design import (
     Design,
@@ -51,7 +53,9 @@ from malcolm.parts.design import (
     PalettePart,
 )
 
-from .base import Controller
+from .base import DEFAULT_PHASE_TIMEOUT, Controller
+
+log = logging.getLogger(__name__)
 
 #: states where a followed or fixed child that drifts sends the manager to Fault
 QUIET_STATES = {"Disabled", "Disabling", "Fault", "Resetting", "Loading"}
@@ -82,7 +86,9 @@ class ManagerController(Controller):
         designs_dir: str | Path | None = None,
         template_dirs: Sequence[str | Path] = (),
         initial_design: str = "",
-        **kwargs: Any,
+        phase_timeout: float | None = DEFAULT_PHASE_TIMEOUT,
+        phase_timeouts: Mapping[str, float] | None = None,
+        model: Model | str | None = None,
     ) -> None:
         self.designs_dir = designs_dir
         self.template_dirs = list(template_dirs)
@@ -93,7 +99,7 @@ class ManagerController(Controller):
         self.model_value = ""
         self.following = True
         self.background: set[asyncio.Future[Any]] = set()
-        super().__init__(mri, parts, description, **kwargs)
+        super().__init__(mri, parts, description, phase_timeout, phase_timeouts, model)
         self.layout.set_value(self._default_layout())
 
     # ---- fields
@@ -205,7 +211,19 @@ class ManagerController(Controller):
         self._refresh_choices()
         await super().start()
         if self.initial_design:
-            await self.put("design", self.initial_design)
+            if self.initial_design not in self.store.names():
+                # nothing saved under that name yet: normal on a new beamline
+                log.warning(
+                    "%s: initial design %r not found in %s; starting without one",
+                    self.mri,
+                    self.initial_design,
+                    self.store.dir,
+                )
+                return
+            try:
+                await self.put("design", self.initial_design)
+            except Exception as e:
+                await self.go_fault(e)
 
     async def stop(self) -> None:
         for part in self.editor_parts:

@@ -146,7 +146,7 @@ def test_unknown_keyword_and_failing_constructor(tmp_path, process):
     found = problems(info, tmp_path)
     assert found[0].startswith(
         "lab/Box.yaml:3: controller.RunnableController: unknown parameter 'colour' "
-        "(RunnableController takes mri, parts, description, phase_timeout"
+        "(RunnableController takes mri, parts, description, designs_dir"
     )
     assert found[1:] == [
         "lab/Box.yaml:6: ca.Double: unknown parameter 'pvv' (CADoublePart takes "
