@@ -50,8 +50,10 @@ class Process:
     subscribed path (``[[], value]`` replaces it whole).
     """
 
-    def __init__(self, name: str = "malcolm") -> None:
+    def __init__(self, name: str = "malcolm", designs_dir: str | None = None) -> None:
         self.name = name
+        #: where managers keep their designs (``<designs_dir>/<mri>/``)
+        self.designs_dir = designs_dir
         self._controllers: dict[str, Controller] = {}
         self._subs: dict[str, list[Subscription]] = {}
         # deliveries wait here while a callback runs, so that every
