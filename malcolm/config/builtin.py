@@ -14,7 +14,7 @@ Controllers (``controller.X``; a block without one gets a StatefulController):
 
 Attributes bound to soft channels (``malcolm.parts.soft``): ``ca.Double``,
 ``ca.Long`` (also ``ca.Int``), ``ca.String``, ``ca.LongString``, ``ca.Enum``,
-``ca.Bool``.
+``ca.Bool``, ``ca.Table`` (``columns``: name -> type).
 
 Parts: the demo's (``parts.HelloPart``, ``parts.CounterPart``,
 ``parts.SimMotorPart``, ``parts.SimDetectorPart``, ``parts.RunnableChildPart``,
@@ -97,6 +97,7 @@ _BUILTINS: dict[str, Any] = {
     "ca.LongString": soft.CALongStringPart,
     "ca.Enum": soft.CAEnumPart,
     "ca.Bool": soft.CABoolPart,
+    "ca.Table": soft.CATablePart,
     "parts.HelloPart": HelloPart,
     "parts.CounterPart": CounterPart,
     "parts.SimMotorPart": SimMotorPart,

@@ -324,8 +324,11 @@ class ManagerController(Controller):
         return [p for p in self.editor_parts if isinstance(p, cls)]
 
     def _install(self, parts: list[EditorPart]) -> None:
+        # detach every old part before removing any: removing an export
+        # deletes its field, which a follower still subscribed would follow
         for old in self.editor_parts:
             old.detach()
+        for old in self.editor_parts:
             self.remove_part(old.name)
         self.editor_parts = []
         for part in parts:

@@ -83,7 +83,12 @@ def read_yaml(path: Path) -> tuple[Any, list[Problem]]:
         text = path.read_text(encoding="utf-8")
     except OSError as e:
         return None, [Problem(file, None, f"cannot read model file: {e.strerror}")]
-    loader = _LineLoader(text)
+    except UnicodeDecodeError as e:
+        return None, [Problem(file, None, f"not UTF-8 text: {e.reason}")]
+    try:
+        loader = _LineLoader(text)
+    except yaml.YAMLError as e:  # e.g. a character YAML does not allow
+        return None, [Problem(file, None, f"bad YAML: {e}")]
     try:
         data = loader.get_single_data()
     except yaml.MarkedYAMLError as e:

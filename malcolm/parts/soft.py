@@ -20,6 +20,9 @@ to an IOC.
   ``["0", "1"]``, the two states of a bo/bi record with no labels set: the
   soft channel cannot ask an IOC for the record's labels, which the Channel
   Access adapter will read instead.
+- ``ca.Table`` takes ``columns``: column name -> type (``Long``/``Int``,
+  ``Double``/``Float``, ``String``, ``Bool``), in order; its value is a table
+  (one array per column), empty at first.
 
 ``gui.Group`` sections make a :class:`GroupPart`: an attribute named after
 the group, a ChoiceMeta of ``expanded``/``collapsed`` tagged
@@ -33,12 +36,17 @@ from typing import Any, ClassVar
 
 from malcolm.core import (
     Attribute,
+    BooleanArrayMeta,
     BooleanMeta,
     ChoiceMeta,
     Meta,
+    NumberArrayMeta,
     NumberMeta,
+    StringArrayMeta,
     StringMeta,
+    TableMeta,
 )
+from malcolm.core.metas import ArrayMeta
 
 from .base import Part, PartRegistrar
 
@@ -50,6 +58,7 @@ __all__ = [
     "CALongStringPart",
     "CAPart",
     "CAStringPart",
+    "CATablePart",
     "GroupPart",
     "SoftChannel",
 ]
@@ -256,6 +265,60 @@ class CAEnumPart(CAPart):
         self, description: str, tags: Sequence[str], writeable: bool, label: str
     ) -> Meta:
         return ChoiceMeta(self.choices, description, tags, writeable, label)
+
+
+#: ``ca.Table`` column types -> the column's array meta
+TABLE_COLUMN_TYPES: dict[str, Any] = {
+    "Long": lambda: NumberArrayMeta("int32"),
+    "Int": lambda: NumberArrayMeta("int32"),
+    "Double": lambda: NumberArrayMeta("float64"),
+    "Float": lambda: NumberArrayMeta("float64"),
+    "String": StringArrayMeta,
+    "Bool": BooleanArrayMeta,
+}
+
+
+class CATablePart(CAPart):
+    """``ca.Table``: a table whose ``columns`` map each name to its type."""
+
+    input_widget = "table"
+
+    def __init__(
+        self,
+        name: str,
+        pv: str | None = None,
+        rbv: str | None = None,
+        rbv_suffix: str | None = None,
+        description: str = "",
+        widget: str | None = None,
+        group: str | None = None,
+        writeable: bool = False,
+        label: str = "",
+        columns: dict[str, str] | None = None,
+    ) -> None:
+        if not isinstance(columns, dict) or not columns:
+            raise ValueError(
+                f"columns must map each column name to its type, not {columns!r}"
+            )
+        elements: dict[str, ArrayMeta] = {}
+        for column, kind in columns.items():
+            if not str(column).isidentifier():
+                raise ValueError(f"column name {column!r} is not an identifier")
+            if not isinstance(kind, str) or kind not in TABLE_COLUMN_TYPES:
+                raise ValueError(
+                    f"column {column}: type {kind!r} is not one of "
+                    + ", ".join(TABLE_COLUMN_TYPES)
+                )
+            elements[str(column)] = TABLE_COLUMN_TYPES[kind]()
+        self.elements = elements
+        super().__init__(
+            name, pv, rbv, rbv_suffix, description, widget, group, writeable, label
+        )
+
+    def make_meta(
+        self, description: str, tags: Sequence[str], writeable: bool, label: str
+    ) -> Meta:
+        return TableMeta(self.elements, description, tags, writeable, label)
 
 
 class GroupPart(Part):

@@ -221,3 +221,15 @@ def test_problems_in_a_parent_name_the_parent(tmp_path: Path) -> None:
     (problem,) = errors(write(tmp_path, "name: Child\nextends: base\n"))
     assert problem.file == str(tmp_path / "base.yaml")
     assert problem.line == 2
+
+
+def test_characters_yaml_forbids_and_non_utf8_are_problems_not_crashes(tmp_path):
+    from malcolm.fsm import ModelError, load_model
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_bytes(b"name: X\x1f\n")
+    with pytest.raises(ModelError, match="bad YAML"):
+        load_model(bad)
+    bad.write_bytes(b"\xff\xfename: X\n")
+    with pytest.raises(ModelError, match="not UTF-8"):
+        load_model(bad)
