@@ -102,6 +102,18 @@ def describe(process: Process) -> str:
     return "\n".join(lines)
 
 
+REACH = """\
+How to reach the blocks:
+  from Python (in this process or your own):
+      from malcolm.demo import demo_process
+      from malcolm.embed import start_process
+      with start_process(demo_process()) as p:
+          print(p.block("HELLO").greet(name="me"))
+          p.block("COUNTER").counter.put(3)
+  or copy the process file and serve it:  malcolm serve {process_file}
+"""
+
+
 async def serve_demo(scan: bool, out: TextIO | None = None) -> int:
     # sys.stdout is read per call (not as a default) so redirections apply
     out = out or sys.stdout
@@ -112,6 +124,7 @@ async def serve_demo(scan: bool, out: TextIO | None = None) -> int:
         if scan:
             await run_demo_scan(process, out=out)
             return 0
+        out.write(REACH.format(process_file=DEMO_PROCESS_FILE))
         out.write("Serving until interrupted (Ctrl-C).\n")
         await asyncio.Event().wait()
         return 0
