@@ -293,7 +293,9 @@ class ManagerController(Controller):
         export_cls = (
             RunnableExportRuntime if "Configure" in self.model.phases else ExportRuntime
         )
-        taken = set(self.block) - {p.field for p in self._of(ExportRuntime)}
+        # fields, and a runnable manager's own configure() arguments
+        own = set(self.block) | set(getattr(self, "_configure_takes", ()))
+        taken = own - {p.field for p in self._of(ExportRuntime)}
         for r in records:
             try:
                 if isinstance(r, ExportPart):
@@ -310,12 +312,32 @@ class ManagerController(Controller):
                             f"{self.mri}: follower {r.name} follows {r.source!r},"
                             " which is not a field of the manager"
                         )
-                    made.append(FollowerRuntime(r.name, r.source, self))
+                    source = next(
+                        (p for p in made
+                         if isinstance(p, ExportRuntime) and p.field == r.source),
+                        None,
+                    )  # fmt: skip
+                    made.append(
+                        FollowerRuntime(
+                            r.name,
+                            r.source,
+                            self,
+                            None if source is None else source.child().meta,
+                        )
+                    )
                 elif type(r) in FIXED_KINDS.values():
                     kind = next(k for k, c in FIXED_KINDS.items() if c is type(r))
                     made.append(FixedRuntime(r.name, r.value, kind, self))
             except BadValueError as e:
                 problems.append(str(e))
+        moving = {p.source for p in made if isinstance(p, ExportRuntime)} | {
+            p.target for p in made if isinstance(p, FollowerRuntime)
+        }
+        for p in made:
+            if isinstance(p, FixedRuntime) and p.target in moving:
+                problems.append(
+                    f"{self.mri}: {p.target} is fixed, and also exported or followed"
+                )
         if problems:
             raise BadValueError("\n".join(problems))
         return made
@@ -351,7 +373,9 @@ class ManagerController(Controller):
         ]
 
     def _apply_layout(self, palette: list[PalettePart]) -> None:
-        current = {r["name"]: r for r in tables.rows(self.layout.value)}
+        # a child the palette leaves out is where a new manager has it, so a
+        # design loads the same whatever was loaded before
+        current = {r["name"]: r for r in tables.rows(self._default_layout())}
         for row in palette:
             current[row.name].update(x=row.xcoord, y=row.ycoord, visible=row.visible)
         self._set_layout(list(current.values()))

@@ -14,7 +14,7 @@ import asyncio
 import copy
 from typing import TYPE_CHECKING, Any
 
-from malcolm.core import Attribute, Method, Subscription
+from malcolm.core import Attribute, BadValueError, Meta, Method, Subscription
 from malcolm.fsm import RunnableDevice, Stateful
 from malcolm.hooks import Task
 from malcolm.parts.base import Part, PartRegistrar
@@ -30,6 +30,37 @@ def same(a: Any, b: Any) -> bool:
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
     return a == b
+
+
+def writeable_attribute(
+    manager: ManagerController, mri: str, field: str, dotted: str, what: str
+) -> Attribute:
+    """The child attribute a follower or fixed row writes, or BadValueError."""
+    target = manager.child_field(mri, field, dotted)
+    if not isinstance(target, Attribute) or not target.meta.writeable:
+        why = "a method" if isinstance(target, Method) else "read-only"
+        raise BadValueError(
+            f"{manager.mri}: {what} {dotted} must be a writeable attribute,"
+            f" but {mri}.{field} is {why}"
+        )
+    return target
+
+
+def compatible(source: Meta, target: Meta) -> bool:
+    """Whether values of ``source`` can be written to ``target`` (a follower)."""
+    from malcolm.core import NumberMeta, TableMeta
+
+    if isinstance(source, NumberMeta) and isinstance(target, NumberMeta):
+        # any number fits a float; only an integer fits an integer
+        return target.dtype.startswith("float") or not source.dtype.startswith("float")
+    if isinstance(source, TableMeta) and isinstance(target, TableMeta):
+        return list(source.elements) == list(target.elements)
+    return type(source) is type(target)
+
+
+def type_of(meta: Meta) -> str:
+    """A meta's type in messages: ``float64``, ``StringMeta``..."""
+    return getattr(meta, "dtype", None) or type(meta).__name__
 
 
 class EditorPart(Part):
@@ -143,11 +174,34 @@ class RunnableExportRuntime(ExportRuntime):
 class FollowerRuntime(EditorPart):
     """Row ``name, source`` of the follower table: child ``name`` follows ``source``."""
 
-    def __init__(self, name: str, source: str, manager: ManagerController) -> None:
+    def __init__(
+        self,
+        name: str,
+        source: str,
+        manager: ManagerController,
+        source_meta: Meta | None = None,
+    ) -> None:
+        """``source_meta``: the meta of ``source`` if it is not yet a field."""
         super().__init__(f"follower:{name}", manager)
         self.target = name
         self.source = source
         self.child_mri, self.child_field = manager.resolve(name)
+        target = writeable_attribute(
+            manager, self.child_mri, self.child_field, name, "follower"
+        )
+        if source_meta is None:
+            field = manager.block[source] if source in manager.block else None
+            if not isinstance(field, Attribute):
+                raise BadValueError(
+                    f"{manager.mri}: follower {name} follows {source!r}, which is"
+                    " not an attribute of the manager"
+                )
+            source_meta = field.meta
+        if not compatible(source_meta, target.meta):
+            raise BadValueError(
+                f"{manager.mri}: follower {name} ({type_of(target.meta)})"
+                f" cannot follow {source} ({type_of(source_meta)})"
+            )
 
     def expected(self) -> Any:
         return self.manager.block.attribute(self.source).value
@@ -215,9 +269,10 @@ class FixedRuntime(EditorPart):
         self.target = name
         self.kind = kind
         self.child_mri, self.child_field = manager.resolve(name)
-        self.value = manager.child_field(self.child_mri, self.child_field).validate(
-            value
+        target = writeable_attribute(
+            manager, self.child_mri, self.child_field, name, "fixed"
         )
+        self.value = target.validate(value)
 
     def actual(self) -> Any:
         return self.manager.child_field(self.child_mri, self.child_field).value
