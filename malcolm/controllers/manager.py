@@ -474,6 +474,7 @@ class ManagerController(Controller):
         if not name:
             raise BadValueError(f"{self.mri}.save: name the design to save")
         assert self.store is not None
+        self.store.check_writable(name)  # refused before the manager leaves Ready
 
         async def save() -> None:
             await self.fire("save")

@@ -127,6 +127,12 @@ class DesignStore:
         return load_design(self.path(name))
 
     def save(self, name: str, records: Iterable[Any]) -> Path:
+        path = self.check_writable(name)
+        atomic_write(path, dump_design(records))
+        return path
+
+    def check_writable(self, name: str) -> Path:
+        """Where ``save(name)`` writes; BadValueError for a bad or template name."""
         if not NAME.match(name or ""):
             raise BadValueError(
                 f"{self.mri}: {name!r} is not a design name (letters, digits, _ . -)"
@@ -136,9 +142,7 @@ class DesignStore:
                 f"{self.mri}: design {name!r} is a read-only template; save under"
                 " another name"
             )
-        path = self.dir / f"{name}.yaml"
-        atomic_write(path, dump_design(records))
-        return path
+        return self.dir / f"{name}.yaml"
 
 
 def records_equal(a: Design, b: Design) -> bool:
