@@ -307,7 +307,8 @@ class ManagerController(Controller):
                     made.append(export_cls(r.name, r.source, r.description, self))
                     exports.add(r.name)
                 elif isinstance(r, FollowerPart):
-                    if r.source not in exports and r.source not in self.block:
+                    # not an export this design drops (the follower would be orphaned)
+                    if r.source not in exports and r.source not in taken:
                         raise BadValueError(
                             f"{self.mri}: follower {r.name} follows {r.source!r},"
                             " which is not a field of the manager"
@@ -330,6 +331,10 @@ class ManagerController(Controller):
                     made.append(FixedRuntime(r.name, r.value, kind, self))
             except BadValueError as e:
                 problems.append(str(e))
+        names = [p.name for p in made]
+        for twice in sorted({n for n in names if names.count(n) > 1}):
+            kind, _, target = twice.partition(":")
+            problems.append(f"{self.mri}: {target} has two {kind} rows")
         moving = {p.source for p in made if isinstance(p, ExportRuntime)} | {
             p.target for p in made if isinstance(p, FollowerRuntime)
         }
@@ -491,7 +496,10 @@ class ManagerController(Controller):
 
     async def _edit_tables(self, exports=None, followers=None, layout=None) -> None:
         """Change the tables: the manager goes to Disabled with the new parts."""
-        records = self._records_from_tables(exports, followers) + self.fixed_records
+        records = self._records_from_tables(exports, followers)
+        # an attribute now exported or followed is no longer fixed
+        moving = {r.source if isinstance(r, ExportPart) else r.name for r in records}
+        records += [r for r in self.fixed_records if r.name not in moving]
         parts = self._build_parts(records)  # problems raised before any change
 
         async def reload() -> None:
