@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -527,6 +528,8 @@ class ManagerController(Controller):
             raise BadValueError(
                 f"{self.mri}.layout: the names and mris of the children cannot change"
             )
+        if not all(math.isfinite(r[xy]) for r in new for xy in ("x", "y")):
+            raise BadValueError(f"{self.mri}.layout: positions must be finite numbers")
         if [r["visible"] for r in new] != [r["visible"] for r in old]:
             await self._edit_tables(layout=new)
         else:
