@@ -148,6 +148,10 @@ class ExportRuntime(EditorPart):
             )
 
     def mirror(self, value: Any) -> None:
+        # subscriptions deliver plain data (a table as lists plus its typeid):
+        # back to the canonical value the child attribute holds
+        if value is not None:
+            value = self.attr.meta.validate(value)
         self.attr.set_value(value, validate=False)
 
     async def put(self, value: Any) -> None:
