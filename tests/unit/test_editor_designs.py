@@ -203,6 +203,27 @@ def test_changing_the_exports_disables_with_the_new_parts(tmp_path):
     run(scenario)
 
 
+def test_exporting_a_fixed_attribute_unfixes_it(tmp_path):
+    process = zebra2(tmp_path)
+
+    async def scenario():
+        await process.start()
+        manager = await load(process)
+        exports = rows(manager.exports.value)
+        await process.put(
+            [MRI, "exports"],
+            [*exports, {"name": "Width2", "source": "PCOMP2.WIDTH", "description": ""}],
+        )
+        await process.post([MRI, "reset"])
+        await process.put([MRI, "Width2"], 64)
+        await settle()
+        assert manager.current == "Ready"
+        assert child(process, "PCOMP2").WIDTH.value == 64
+        await process.stop()
+
+    run(scenario)
+
+
 def test_changing_the_followers_disables_with_the_new_parts(tmp_path):
     process = zebra2(tmp_path)
 
@@ -426,6 +447,35 @@ def test_a_table_edit_naming_a_missing_attribute_changes_nothing(tmp_path):
 # ---- templates, design names and the design choices
 
 
+def test_a_template_loads_but_is_not_overwritten(tmp_path):
+    process = zebra2(tmp_path)
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    shutil.copy(EXAMPLE, templates / "shipped.yaml")
+    manager = process.get_controller(MRI)
+    manager.template_dirs = [templates]
+
+    async def scenario():
+        await process.start()
+        assert "shipped" in manager.design.meta.choices
+        await load(process, "shipped")
+        assert manager.design.value == "shipped"
+        assert child(process, "PCOMP2").WIDTH.value == 32
+        with pytest.raises(BadValueError, match="'shipped' is a read-only template"):
+            await process.post([MRI, "save"])
+        with pytest.raises(BadValueError, match="read-only template"):
+            await process.post([MRI, "save"], {"design": "shipped"})
+        assert manager.current == "Ready" and manager.design.value == "shipped"
+        await process.post([MRI, "save"], {"design": "mine"})
+        assert manager.design.value == "mine"
+        await process.stop()
+
+    run(scenario)
+    assert (templates / "shipped.yaml").read_text() == EXAMPLE.read_text()
+    assert saved(tmp_path, "mine").exists()
+    assert sorted(p.name for p in templates.iterdir()) == ["shipped.yaml"]
+
+
 def test_design_choices_are_the_saved_designs(tmp_path):
     process = zebra2(tmp_path)
     manager = process.get_controller(MRI)
@@ -446,6 +496,28 @@ def test_design_choices_are_the_saved_designs(tmp_path):
         await process.stop()
 
     run(scenario)
+
+
+@pytest.mark.parametrize("name", ["../escape", "a/b", "/abs", "..", ".hidden", "a\\b"])
+def test_design_names_with_path_separators_are_refused(tmp_path, name):
+    process = zebra2(tmp_path)
+    manager = process.get_controller(MRI)
+
+    async def scenario():
+        await process.start()
+        await load(process)
+        before = snapshot(process)
+        with pytest.raises(BadValueError, match="not a design name"):
+            await process.post([MRI, "save"], {"design": name})
+        with pytest.raises(BadValueError):
+            await process.post([MRI, "load"], {"design": name})
+        assert snapshot(process) == before
+        assert manager.current == "Ready"
+        await process.stop()
+
+    run(scenario)
+    files = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    assert files == ["designs", "designs/BL18I_Z1", "designs/BL18I_Z1/example.yaml"]
 
 
 def test_save_and_load_are_refused_outside_ready(tmp_path):
