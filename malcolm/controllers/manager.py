@@ -344,6 +344,11 @@ class ManagerController(Controller):
                 problems.append(
                     f"{self.mri}: {p.target} is fixed, and also exported or followed"
                 )
+        exported = {p.source for p in made if isinstance(p, ExportRuntime)}
+        for p in made:
+            if isinstance(p, FollowerRuntime) and p.target in exported:
+                # a write through the export would be drift of the follower
+                problems.append(f"{self.mri}: {p.target} is exported, and followed")
         if problems:
             raise BadValueError("\n".join(problems))
         return made
