@@ -25,7 +25,8 @@ nothing):
   export of the same type or the manager's own ``model``; an edit may export
   or follow a fixed attribute, which unfixes it) and invalid ones (missing
   child, missing attribute, not CHILD.FIELD, taken or bad export names, a
-  follower left without its export, a duplicated follower, unknown blocks,
+  follower left without its export, a duplicated follower, an attribute
+  both exported and followed, unknown blocks,
   renamed rows, non-finite positions) that must be refused with nothing
   changed.
 
@@ -92,6 +93,7 @@ from malcolm.core import (
     TableMeta,
 )
 from malcolm.editor.store import DesignStore
+from malcolm.fsm import load_model
 from malcolm.parts import ChildPart, Part
 from malcolm.parts.design import (
     ExportPart,
@@ -115,6 +117,8 @@ EXAMPLE_FILE = (
     / "PositionBased.yaml"
 )
 MRI = "Z"
+#: read once: every example builds five controllers
+STATEFUL, MANAGER = load_model("stateful"), load_model("manager")
 CALL_TIMEOUT = 10.0
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
 
@@ -290,13 +294,16 @@ class ManagerMachine(RuleBasedStateMachine):
         self.process = Process("test")
         for child, fields in CHILDREN.items():
             self.process.add_controller(
-                StatefulController(f"{MRI}:{child}", [Soft("soft", fields)])
+                StatefulController(
+                    f"{MRI}:{child}", [Soft("soft", fields)], model=STATEFUL
+                )
             )
         self.m = ManagerController(
             MRI,
             [ChildPart(child, f"{MRI}:{child}") for child in CHILDREN],
             designs_dir=self.tmp / "designs",
             template_dirs=[templates],
+            model=MANAGER,
         )
         self.process.add_controller(self.m)
         self.loop.run_until_complete(self.process.start())
@@ -655,6 +662,8 @@ class ManagerMachine(RuleBasedStateMachine):
         ]
         if exports:
             bad.append((exports[0][0], "PCOMP1.START"))  # twice the same name
+        if self.spec.followers:  # an attribute a follower sets
+            bad.append(("Gx", self.spec.followers[0][0]))
         orphans = followed & {e[0] for e in exports}
         choice = data.draw(st.sampled_from([*bad, None] if orphans else bad))
         if choice is None:  # drop an export a follower follows
@@ -712,6 +721,9 @@ class ManagerMachine(RuleBasedStateMachine):
         ]
         if followers:
             bad.append(followers[0])  # the same target twice
+        if self.spec.exports:  # an attribute an export writes
+            name, exported, _ = self.spec.exports[0]
+            bad.append((exported, name))
         followers.append(data.draw(st.sampled_from(bad)))
         self.refused(
             self.put("followers", self.followers_value(followers)), BadValueError
