@@ -22,6 +22,7 @@ from malcolm.controllers.runnable import RunnableController
 from malcolm.core import Process
 from malcolm.fsm import RunnableDevice, load_model
 from malcolm.parts import Part
+from malcolm.scan.gda import compound, line
 
 PHASES = ("Validate", "ReportStatus", "PreConfigure", "Configure", "PostConfigure")
 RUN_PHASES = ("PreRun", "Run", "PostRunArmed")
@@ -44,23 +45,7 @@ class NoOpPart(Part):
 
 
 def generator(size: int) -> dict:
-    return {
-        "typeid": "scanpointgenerator:generator/CompoundGenerator:1.0",
-        "generators": [
-            {
-                "typeid": "scanpointgenerator:generator/LineGenerator:1.0",
-                "axes": ["x"],
-                "units": ["mm"],
-                "start": [0],
-                "stop": [1],
-                "size": size,
-                "alternate": False,
-            }
-        ],
-        "excluders": [],
-        "mutators": [],
-        "duration": 0.0,
-    }
+    return compound(line("x", size))
 
 
 async def best_of(repeats: int, fn: Callable[[], Awaitable[None]]) -> float:

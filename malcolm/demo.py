@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from malcolm.core import Process
+from malcolm.scan import gda
 
 #: The demo's process file; copy it to start your own.
 DEMO_PROCESS_FILE = Path(__file__).resolve().parent / "blocks" / "demo" / "process.yaml"
@@ -35,27 +36,9 @@ def demo_generator(
     ny: int = 3, nx: int = 4, duration: float = 0.05, snake: bool = True
 ) -> dict[str, Any]:
     """A y/x grid as GDA sends it (a CompoundGenerator dict)."""
-
-    def line(axis: str, size: int, alternate: bool) -> dict[str, Any]:
-        return {
-            "typeid": "scanpointgenerator:generator/LineGenerator:1.0",
-            "axes": [axis],
-            "units": ["mm"],
-            "start": [0.0],
-            "stop": [1.0],
-            "size": size,
-            "alternate": alternate,
-        }
-
-    return {
-        "typeid": "scanpointgenerator:generator/CompoundGenerator:1.0",
-        "generators": [line("y", ny, False), line("x", nx, snake)],
-        "excluders": [],
-        "mutators": [],
-        "duration": duration,
-        "continuous": True,
-        "delay_after": 0.0,
-    }
+    return gda.compound(
+        gda.line("y", ny), gda.line("x", nx, alternate=snake), duration=duration
+    )
 
 
 def progress_bar(done: int, total: int, width: int = 40) -> str:

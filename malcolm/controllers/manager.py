@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -206,7 +207,7 @@ class ManagerController(Controller):
         assert self.process is not None
         base = self.designs_dir or getattr(self.process, "designs_dir", None)
         self.store = DesignStore(
-            self.mri, base or Path.cwd() / "designs", self.template_dirs
+            self.mri, base or default_designs_dir(), self.template_dirs
         )
         self.layout.set_value(self._default_layout())
         self._refresh_choices()
@@ -557,6 +558,11 @@ class ManagerController(Controller):
                 return tables.columns(self.layout.meta, layout_rows)
         known = ", ".join(r["name"] for r in layout_rows) or "none"
         raise BadValueError(f"{self.mri}: no child {block_name!r} (children: {known})")
+
+
+def default_designs_dir() -> Path:
+    """``$MALCOLM_DESIGNS_DIR``, else ``designs/`` in the working directory."""
+    return Path(os.environ.get("MALCOLM_DESIGNS_DIR") or Path.cwd() / "designs")
 
 
 def fixed_kind(attr: Attribute) -> str | None:

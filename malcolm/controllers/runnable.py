@@ -13,7 +13,9 @@ from itertools import accumulate
 from typing import Any
 
 from malcolm.core import (
+    AbortedError,
     BadValueError,
+    MalcolmError,
     MapMeta,
     Meta,
     MethodMeta,
@@ -25,6 +27,7 @@ from malcolm.core import (
 from malcolm.scan import ScanPoints, scan_points
 from malcolm.scan.errors import GeneratorError
 
+from .base import Device
 from .manager import ManagerController
 
 MAX_VALIDATE_ROUNDS = 10
@@ -87,6 +90,7 @@ class RunnableController(ManagerController):
         self._seek_to: int | None = None
         self._run_inner: asyncio.Task[Any] | None = None
         self._resume: asyncio.Future[bool] | None = None
+        self._seek_op: asyncio.Task[Any] | None = None
 
     # ---- configure arguments (parts add their own)
     def add_configure_arg(
@@ -138,7 +142,8 @@ class RunnableController(ManagerController):
                 break
         return end
 
-    def _prepare(self, params: Mapping[str, Any]) -> None:
+    def _prepare(self, params: Mapping[str, Any], device: Device | None = None) -> None:
+        """Check the scan; set it up, or only on ``device`` (for validate)."""
         generator = params["generator"]
         points = generator if isinstance(generator, ScanPoints) else None
         try:
@@ -157,18 +162,23 @@ class RunnableController(ManagerController):
             )
         if any(b <= 0 for b in breakpoints):
             raise BadValueError(f"{self.mri}.configure.breakpoints: must be positive")
-        self.points = points
-        self._steps_per_run = spr
-        self._breakpoint_ends = list(accumulate(breakpoints))
-        self.device.points = points
-        self.device.params = dict(params)
+        if device is None:
+            device = self.device
+            self.points = points
+            self._steps_per_run = spr
+            self._breakpoint_ends = list(accumulate(breakpoints))
+        device.points = points
+        device.params = dict(params)
 
     # ---- phases: the controller's part of each
-    async def run_phase(self, phase: str) -> dict[str, Any]:
+    async def run_phase(
+        self, phase: str, device: Device | None = None
+    ) -> dict[str, Any]:
+        device = device or self.device
         if phase != "Validate":
-            return await super().run_phase(phase)
+            return await super().run_phase(phase, device)
         for _ in range(MAX_VALIDATE_ROUNDS):
-            results = await super().run_phase(phase)
+            results = await super().run_phase(phase, device)
             changed = {}
             for part, tweaks in results.items():
                 if not tweaks:
@@ -179,11 +189,11 @@ class RunnableController(ManagerController):
                         " Validate; expected a dict of changed parameters"
                     )
                 for k, v in tweaks.items():
-                    if self.device.params.get(k) != v:
+                    if device.params.get(k) != v:
                         changed[k] = v
             if not changed:
                 return results
-            self.device.params.update(changed)
+            device.params.update(changed)
         raise BadValueError(
             f"{self.mri}: parameters did not settle after {MAX_VALIDATE_ROUNDS}"
             " validate rounds"
@@ -230,9 +240,11 @@ class RunnableController(ManagerController):
     # ---- calls
     async def do_validate(self, **params: Any) -> dict[str, Any]:
         """Check parameters; returns them as the parts would tweak them."""
-        self._prepare(params)
-        await self.run_phase("Validate")
-        return dict(self.device.params)
+        # on a device of its own: validating must not touch the armed scan
+        device = Device(self)
+        self._prepare(params, device)
+        await self.run_phase("Validate", device)
+        return dict(device.params)
 
     async def do_configure(self, **params: Any) -> None:
         """Validate the parameters and set up the scan; ends Armed."""
@@ -272,6 +284,7 @@ class RunnableController(ManagerController):
         if steps is None:
             steps = self.completed.value
         steps = max(0, min(int(steps), self.total.value))
+        self._check_not_seeking("pause")
         try:
             if self.current == "Running":
                 self._paused = True
@@ -282,7 +295,7 @@ class RunnableController(ManagerController):
                 await self._seek("pause", steps)
             else:
                 await self._seek("pause", steps)
-        except (NotAllowedError, BadValueError):
+        except (NotAllowedError, BadValueError, AbortedError):
             raise
         except Exception as e:
             await self.go_fault(e)
@@ -307,18 +320,64 @@ class RunnableController(ManagerController):
             )
         try:
             await self._seek("seek", steps)
+        except (NotAllowedError, AbortedError):
+            raise
         except Exception as e:
             await self.go_fault(e)
             raise
 
     async def _seek(self, trigger: str, steps: int) -> None:
         self.choose(trigger)  # fail early if not allowed here
+        self._check_not_seeking(trigger)
+        if self._op is not None and not self._op.done() and self._op_name != "run":
+            raise NotAllowedError(
+                f"{self.mri}: cannot {trigger} while {self._op_name} is in progress"
+                f" (state {self.current})"
+            )
         self._seek_to = steps
-        await self.fire(trigger)
-        await self.settle()
+
+        async def seek() -> None:
+            await self.fire(trigger)
+            await self.settle()
+
+        # a task of its own, so that abort and disable can cancel it
+        self._seek_op = op = asyncio.ensure_future(seek())
+        await asyncio.wait({op})
+        if op.cancelled():
+            raise AbortedError(f"{self.mri}: {trigger} was aborted")
+        op.result()
+
+    def _check_not_seeking(self, name: str) -> None:
+        if self._seek_op is not None and not self._seek_op.done():
+            raise NotAllowedError(
+                f"{self.mri}: cannot {name} while a pause or seek is in progress"
+                f" (state {self.current})"
+            )
+
+    async def operation(self, name: str, coro: Any, interrupt: bool = False) -> Any:
+        """As the base, and: a pause or seek in flight is cancelled by an
+        interrupting operation and refuses the others."""
+        seek = self._seek_op
+        if seek is not None and not seek.done():
+            if not interrupt:
+                coro.close()
+                self._check_not_seeking(name)
+            seek.cancel()
+            await asyncio.wait({seek})
+        return await super().operation(name, coro, interrupt)
+
+    async def go_fault(self, error: BaseException | str) -> None:
+        await super().go_fault(error)
+        resume = self._resume
+        if resume is not None and not resume.done():
+            # a paused run() fails with the fault instead of waiting forever
+            if not isinstance(error, BaseException):
+                error = MalcolmError(error)
+            resume.set_exception(error)
 
     async def do_resume(self) -> None:
         """Continue a paused scan."""
+        self._check_not_seeking("resume")
         self._paused = False
         self.move("resume")
         if self._resume is not None and not self._resume.done():

@@ -6,29 +6,14 @@ import asyncio
 from collections.abc import Awaitable, Callable
 from typing import Any
 
-LINE = "scanpointgenerator:generator/LineGenerator:1.0"
+from malcolm.scan import gda
 
 
 def compound(*lines: tuple[str, int], duration: float = 0.001) -> dict[str, Any]:
     """A CompoundGenerator of lines (outer first): ("y", 3), ("x", 2)."""
-    return {
-        "typeid": "scanpointgenerator:generator/CompoundGenerator:1.0",
-        "generators": [
-            {
-                "typeid": LINE,
-                "axes": [axis],
-                "units": ["mm"],
-                "start": [0],
-                "stop": [1],
-                "size": size,
-                "alternate": False,
-            }
-            for axis, size in lines
-        ],
-        "excluders": [],
-        "mutators": [],
-        "duration": duration,
-    }
+    return gda.compound(
+        *(gda.line(axis, size) for axis, size in lines), duration=duration
+    )
 
 
 def run(scenario: Callable[[], Awaitable[Any]], timeout: float = 30) -> Any:
