@@ -109,6 +109,17 @@ class RunnableController(ManagerController):
                 self.block.remove(call)
                 self.add_call(call)
 
+    def remove_configure_arg(self, name: str) -> None:
+        if name in self._configure_takes:
+            del self._configure_takes[name]
+            self._configure_defaults.pop(name, None)
+            if name in self._configure_required:
+                self._configure_required.remove(name)
+            for call in ("configure", "validate"):
+                if call in self.block:
+                    self.block.remove(call)
+                    self.add_call(call)
+
     def _configure_meta(self, description: str, returns: bool) -> MethodMeta:
         takes = MapMeta(dict(self._configure_takes), list(self._configure_required))
         return MethodMeta(
