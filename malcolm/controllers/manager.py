@@ -24,6 +24,7 @@ from malcolm.core import (
     BadValueError,
     BooleanMeta,
     ChoiceMeta,
+    MalcolmError,
     MapMeta,
     Method,
     MethodMeta,
@@ -265,9 +266,13 @@ class ManagerController(Controller):
         self.health.set_value(f"{self.mri}: {message}", alarm=Alarm.major(message))
         if self.model.transitions_for("fault", self.current):
             op = self._op
-            if op is not None and not op.done():
+            inside = op is not None and op is asyncio.current_task()
+            if op is not None and not op.done() and not inside:
                 op.cancel()
             self.move("fault")
+            if inside:
+                # found by the operation's own check: its caller gets the reason
+                raise MalcolmError(f"{self.mri}: {message}")
 
     def move(self, trigger: str) -> None:
         super().move(trigger)
@@ -463,7 +468,9 @@ class ManagerController(Controller):
             records.append(ModelPart(self.model_value))
         for row in tables.rows(self.layout.value):
             records.append(
-                PalettePart(row["name"], int(row["x"]), int(row["y"]), row["visible"])
+                PalettePart(
+                    row["name"], round(row["x"]), round(row["y"]), row["visible"]
+                )
             )
         records.extend(self._records_from_tables())
         exported = {p.source for p in self._of(ExportRuntime)}

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import re
 import tempfile
+import time
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, fields
 from pathlib import Path
@@ -55,12 +56,13 @@ def _mode_of(path: Path) -> int:
 def atomic_write(path: Path, text: str) -> None:
     """Replace ``path`` with ``text`` so that readers see old or new, never half."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale_temps(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        # mkstemp makes the file 0600: give it the old file's mode, or what a
-        # new file gets (0666 less the umask), so others can still read it
-        os.fchmod(fd, _mode_of(path))
         with os.fdopen(fd, "w", encoding="utf-8") as f:
+            # mkstemp makes the file 0600: give it the old file's mode, or what
+            # a new file gets (0666 less the umask), so others can still read it
+            os.fchmod(f.fileno(), _mode_of(path))
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
@@ -76,6 +78,20 @@ def atomic_write(path: Path, text: str) -> None:
         os.fsync(dir_fd)
     finally:
         os.close(dir_fd)
+
+
+STALE_TEMP_SECONDS = 60.0
+
+
+def _remove_stale_temps(path: Path) -> None:
+    """Temp files of saves killed long ago (a live save's temp is left alone)."""
+    now = time.time()
+    for tmp in path.parent.glob(f".{path.name}.*.tmp"):
+        try:
+            if now - tmp.stat().st_mtime > STALE_TEMP_SECONDS:
+                tmp.unlink()
+        except OSError:
+            pass
 
 
 class DesignStore:

@@ -289,3 +289,22 @@ def test_manager_refuses_a_bad_or_template_name_and_stays_ready(
     tmp_path: Path,
 ) -> None:
     asyncio.run(_manager_save_refusals(tmp_path))
+
+
+def test_temps_of_saves_killed_long_ago_are_cleaned_up(tmp_path):
+    import os
+    import time
+
+    from malcolm.editor.store import STALE_TEMP_SECONDS, atomic_write
+
+    target = tmp_path / "d.yaml"
+    old = tmp_path / ".d.yaml.abc123.tmp"
+    fresh = tmp_path / ".d.yaml.def456.tmp"
+    old.write_text("half a design")
+    fresh.write_text("a save in progress")
+    long_ago = time.time() - STALE_TEMP_SECONDS - 5
+    os.utime(old, (long_ago, long_ago))
+    atomic_write(target, "parts.ModelPart:\n    name: X\n")
+    assert target.read_text() == "parts.ModelPart:\n    name: X\n"
+    assert not old.exists()
+    assert fresh.exists()
