@@ -45,10 +45,16 @@ class _Guards:
 
     def __init__(self, controller: Controller) -> None:
         self._controller = controller
+        #: guard answers to replay during a move (see Controller.move)
+        self.cached: dict[str, bool] | None = None
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_"):
             raise AttributeError(name)
+        cached = self.__dict__.get("cached")
+        if cached is not None and name in cached:
+            value = cached[name]
+            return lambda: value
         return getattr(self._controller, name)
 
 
@@ -106,6 +112,7 @@ class Controller:
         self._fsm = _Guards(self)
         self._machine = self.model.build_machine(self._fsm)
         self._op: asyncio.Task[Any] | None = None
+        self._guard_values: dict[str, bool] = {}
         self._op_name = ""
         self.state_listeners: list[Callable[[str, str], None]] = []
         self.health = self._add_attr("health", StringMeta("Why the block is in Fault"))
@@ -209,25 +216,47 @@ class Controller:
     def choose(self, trigger: str) -> Transition:
         """The first transition for ``trigger`` from here whose guards pass."""
         state = self.current
+        values: dict[str, bool] = {}
+
+        def guard(name: str) -> bool:
+            if name not in values:
+                values[name] = bool(getattr(self, name)())
+            return values[name]
+
         for t in self.model.transitions_for(trigger, state):
-            if all(getattr(self, g)() for g in t.guards) and not any(
-                getattr(self, g)() for g in t.unless
-            ):
+            if all(guard(g) for g in t.guards) and not any(guard(g) for g in t.unless):
+                # every guard an earlier candidate asked, as it answered then
+                self._guard_values = values
                 return t
         raise NotAllowedError(f"{self.mri}: cannot {trigger} in state {state}")
 
     async def fire(self, trigger: str) -> Transition:
-        """Run the phases of the chosen transition, then move."""
+        """Run the phases of the chosen transition, then move along it.
+
+        The guards are evaluated once, when the transition is chosen: the
+        move goes to that transition's destination even if the phases changed
+        what the guards look at.
+        """
         t = self.choose(trigger)
         for phase in t.phases:
             await self.run_phase(phase)
-        self.move(trigger)
+        self.move(trigger, t.dest)
         return t
 
-    def move(self, trigger: str) -> None:
+    def move(self, trigger: str, dest: str | None = None) -> None:
+        """Fire ``trigger`` on the machine; with ``dest``, the guards answer as
+        they did when ``choose`` picked the transition to ``dest``."""
         before = self.current
-        self._fsm.trigger(trigger)
+        self._fsm.cached = self._guard_values if dest is not None else None
+        try:
+            self._fsm.trigger(trigger)
+        finally:
+            self._fsm.cached = None
         after = self.current
+        if dest is not None and after != dest:
+            raise RuntimeError(
+                f"{self.mri}: {trigger} from {before} went to {after}, not {dest}"
+            )
         self.state.set_value(after)
         self._update_writeable()
         for listener in list(self.state_listeners):
@@ -317,7 +346,13 @@ class Controller:
     async def _guarded(self, name: str, coro: Any) -> Any:
         try:
             return await coro
-        except (asyncio.CancelledError, NotAllowedError, BadValueError):
+        except asyncio.CancelledError:
+            raise
+        except (NotAllowedError, BadValueError) as e:
+            # refused before anything moved: nothing changed; but if the block
+            # had already left a resting state it must not stay busy for ever
+            if self.model.states[self.current].busy:
+                await self.go_fault(f"{name} stopped half way: {e}")
             raise
         except Exception as e:
             await self.go_fault(e)

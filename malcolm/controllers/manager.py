@@ -274,8 +274,8 @@ class ManagerController(Controller):
                 # found by the operation's own check: its caller gets the reason
                 raise MalcolmError(f"{self.mri}: {message}")
 
-    def move(self, trigger: str) -> None:
-        super().move(trigger)
+    def move(self, trigger: str, dest: str | None = None) -> None:
+        super().move(trigger, dest)
         if self.current not in QUIET_STATES and trigger == "done":
             self.verify_all()
 

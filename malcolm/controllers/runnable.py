@@ -87,7 +87,6 @@ class RunnableController(ManagerController):
         self._breakpoint_ends: list[int] = []
         self._progress: dict[str, int] = {}
         self._paused = False
-        self._seek_to: int | None = None
         self._run_inner: asyncio.Task[Any] | None = None
         self._resume: asyncio.Future[bool] | None = None
         self._seek_op: asyncio.Task[Any] | None = None
@@ -227,14 +226,10 @@ class RunnableController(ManagerController):
             self.device.stepsToDo = self.configured.value - self.completed.value
         elif phase == "PostRunArmed":
             self.configured.set_value(self.next_configured(self.completed.value))
-        elif phase == "Seek" and self._seek_to is not None:
-            self.completed.set_value(self._seek_to)
-            self.configured.set_value(self.next_configured(self._seek_to))
-            self._seek_to = None
 
-    def move(self, trigger: str) -> None:
+    def move(self, trigger: str, dest: str | None = None) -> None:
         leaving = self.current
-        super().move(trigger)
+        super().move(trigger, dest)
         if leaving == "Running" and self.current == "PostRun":
             self.completed.set_value(self.configured.value)
 
@@ -345,10 +340,13 @@ class RunnableController(ManagerController):
                 f"{self.mri}: cannot {trigger} while {self._op_name} is in progress"
                 f" (state {self.current})"
             )
-        self._seek_to = steps
 
         async def seek() -> None:
-            await self.fire(trigger)
+            await self.fire(trigger)  # the Pause phase (from Running) runs first
+            # the target is known before Seeking chooses where to go next
+            self._seek_to = None
+            self.completed.set_value(steps)
+            self.configured.set_value(self.next_configured(steps))
             await self.settle()
 
         # a task of its own, so that abort and disable can cancel it
