@@ -43,6 +43,8 @@ class GeneratorMeta(Meta):
             raise BadValueError("a generator is required")
         if isinstance(value, ScanPoints):
             return value
+        if hasattr(value, "serialize"):  # a scanspec Spec: keep it plain data
+            value = value.serialize()
         try:
             scan_points(value)
         except GeneratorError as e:

@@ -374,3 +374,20 @@ def test_progress_is_the_minimum_over_parts():
         assert c.block.completedSteps.value == 6
 
     run(scenario)
+
+
+def test_a_scanspec_spec_configures_the_same_scan():
+    from scanspec.specs import Line
+
+    async def scenario():
+        p, c, _ = await make()
+        spec = Line("y", 0, 1, 3) * Line("x", 0, 1, 2)
+        await p.post(["DET", "configure"], {"generator": spec, "axesToMove": ["x"]})
+        assert (c.block.state.value, steps(c.block)) == ("Armed", (2, 0, 6))
+        # the took log holds plain data a transport can send
+        took = c.block.configure.took.to_dict()["value"]["generator"]
+        assert took["type"] == "Product"
+        await p.post(["DET", "run"])
+        assert steps(c.block) == (4, 2, 6)
+
+    run(scenario)
