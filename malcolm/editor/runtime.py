@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import copy
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from malcolm.core import Attribute, BadValueError, Meta, Method, Subscription
@@ -77,6 +78,12 @@ class EditorPart(Part):
     def attach(self) -> None:
         """Subscribe (the process exists and the block is added)."""
 
+    def watch(self, mri: str, field: str, callback: Callable[[Any], None]) -> None:
+        """Call ``callback(value)`` now and whenever ``mri.field`` changes."""
+        process = self.manager.process
+        assert process is not None
+        self.subs.append(process.subscribe([mri, field, "value"], callback, False))
+
     def detach(self) -> None:
         process = self.manager.process
         for sub in self.subs:
@@ -139,15 +146,8 @@ class ExportRuntime(EditorPart):
 
     def attach(self) -> None:
         target = self.child()
-        process = self.manager.process
-        if isinstance(target, Attribute) and process is not None:
-            self.subs.append(
-                process.subscribe(
-                    [self.child_mri, self.child_field, "value"],
-                    self.mirror,
-                    delta=False,
-                )
-            )
+        if isinstance(target, Attribute):
+            self.watch(self.child_mri, self.child_field, self.mirror)
 
     def mirror(self, value: Any) -> None:
         # subscriptions deliver plain data (a table as lists plus its typeid):
@@ -216,20 +216,8 @@ class FollowerRuntime(EditorPart):
         return self.manager.child_field(self.child_mri, self.child_field).value
 
     def attach(self) -> None:
-        process = self.manager.process
-        assert process is not None
-        self.subs.append(
-            process.subscribe(
-                [self.manager.mri, self.source, "value"], self.on_source, delta=False
-            )
-        )
-        self.subs.append(
-            process.subscribe(
-                [self.child_mri, self.child_field, "value"],
-                self.on_child_change,
-                delta=False,
-            )
-        )
+        self.watch(self.manager.mri, self.source, self.on_source)
+        self.watch(self.child_mri, self.child_field, self.on_child_change)
 
     def on_source(self, value: Any) -> None:
         if self.manager.following and not same(value, self.actual()):
@@ -284,15 +272,7 @@ class FixedRuntime(EditorPart):
         return self.manager.child_field(self.child_mri, self.child_field).value
 
     def attach(self) -> None:
-        process = self.manager.process
-        assert process is not None
-        self.subs.append(
-            process.subscribe(
-                [self.child_mri, self.child_field, "value"],
-                self.on_child_change,
-                delta=False,
-            )
-        )
+        self.watch(self.child_mri, self.child_field, self.on_child_change)
 
     def mismatch(self) -> str | None:
         actual = self.actual()
