@@ -14,7 +14,6 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
-import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -31,45 +30,38 @@ from malcolm.core import (
     NumberMeta,
     StringMeta,
 )
-from malcolm.editor import tables
+from malcolm.editor import plan, tables
+from malcolm.editor.plan import (
+    FIXED_KINDS,
+    default_designs_dir,
+    fixed_kind,
+    plain_value,
+)
 from malcolm.editor.runtime import (
     EditorPart,
     ExportRuntime,
     FixedRuntime,
     FollowerRuntime,
-    RunnableExportRuntime,
 )
 from malcolm.editor.store import DesignStore
 from malcolm.fsm import Model
 from malcolm.parts.base import ChildPart
-from malcolm.parts.design import (
-    Design,
-    ExportPart,
-    FixedBool,
-    FixedEnum,
-    FixedFloat,
-    FixedInt,
-    FixedString,
-    FixedTable,
-    FollowerPart,
-    ModelPart,
-    PalettePart,
-)
+from malcolm.parts.design import Design, ExportPart, PalettePart
 
 from .base import DEFAULT_PHASE_TIMEOUT, Controller
+
+__all__ = [
+    "FIXED_KINDS",
+    "QUIET_STATES",
+    "ManagerController",
+    "default_designs_dir",
+    "fixed_kind",
+]
 
 log = logging.getLogger(__name__)
 
 #: states where a followed or fixed child that drifts sends the manager to Fault
 QUIET_STATES = {"Disabled", "Disabling", "Fault", "Resetting", "Loading"}
-FIXED_KINDS = {
-    "fixed.Int": FixedInt,
-    "fixed.Float": FixedFloat,
-    "fixed.String": FixedString,
-    "fixed.Bool": FixedBool,
-    "fixed.Enum": FixedEnum,
-    "fixed.Table": FixedTable,
-}
 
 
 def _s(name: str, description: str) -> StringMeta:
@@ -280,85 +272,6 @@ class ManagerController(Controller):
             self.verify_all()
 
     # ---- the design as parts
-    def _records_from_tables(
-        self,
-        exports: list[dict[str, Any]] | None = None,
-        followers: list[dict[str, Any]] | None = None,
-    ) -> list[Any]:
-        ex = exports if exports is not None else tables.rows(self.exports.value)
-        fo = followers if followers is not None else tables.rows(self.followers.value)
-        return [
-            *(ExportPart(r["name"], r["source"], r.get("description", "")) for r in ex),
-            *(FollowerPart(r["name"], r["source"]) for r in fo),
-        ]
-
-    def _build_parts(self, records: list[Any]) -> list[EditorPart]:
-        """Make (not add) the parts of a design; BadValueError naming each problem."""
-        problems: list[str] = []
-        made: list[EditorPart] = []
-        exports: set[str] = set()
-        export_cls = (
-            RunnableExportRuntime if "Configure" in self.model.phases else ExportRuntime
-        )
-        # fields, and a runnable manager's own configure() arguments
-        own = set(self.block) | set(getattr(self, "_configure_takes", ()))
-        taken = own - {p.field for p in self._of(ExportRuntime)}
-        for r in records:
-            try:
-                if isinstance(r, ExportPart):
-                    if not r.name.isidentifier() or r.name in taken | exports:
-                        raise BadValueError(
-                            f"{self.mri}: export name {r.name!r} is not a free field"
-                            " name"
-                        )
-                    made.append(export_cls(r.name, r.source, r.description, self))
-                    exports.add(r.name)
-                elif isinstance(r, FollowerPart):
-                    # not an export this design drops (the follower would be orphaned)
-                    if r.source not in exports and r.source not in taken:
-                        raise BadValueError(
-                            f"{self.mri}: follower {r.name} follows {r.source!r},"
-                            " which is not a field of the manager"
-                        )
-                    source = next(
-                        (p for p in made
-                         if isinstance(p, ExportRuntime) and p.field == r.source),
-                        None,
-                    )  # fmt: skip
-                    made.append(
-                        FollowerRuntime(
-                            r.name,
-                            r.source,
-                            self,
-                            None if source is None else source.child().meta,
-                        )
-                    )
-                elif type(r) in FIXED_KINDS.values():
-                    kind = next(k for k, c in FIXED_KINDS.items() if c is type(r))
-                    made.append(FixedRuntime(r.name, r.value, kind, self))
-            except BadValueError as e:
-                problems.append(str(e))
-        names = [p.name for p in made]
-        for twice in sorted({n for n in names if names.count(n) > 1}):
-            kind, _, target = twice.partition(":")
-            problems.append(f"{self.mri}: {target} has two {kind} rows")
-        moving = {p.source for p in made if isinstance(p, ExportRuntime)} | {
-            p.target for p in made if isinstance(p, FollowerRuntime)
-        }
-        for p in made:
-            if isinstance(p, FixedRuntime) and p.target in moving:
-                problems.append(
-                    f"{self.mri}: {p.target} is fixed, and also exported or followed"
-                )
-        exported = {p.source for p in made if isinstance(p, ExportRuntime)}
-        for p in made:
-            if isinstance(p, FollowerRuntime) and p.target in exported:
-                # a write through the export would be drift of the follower
-                problems.append(f"{self.mri}: {p.target} is exported, and followed")
-        if problems:
-            raise BadValueError("\n".join(problems))
-        return made
-
     def _of(self, cls: type) -> list[Any]:
         return [p for p in self.editor_parts if isinstance(p, cls)]
 
@@ -385,7 +298,7 @@ class ManagerController(Controller):
             [{"name": p.target, "source": p.source} for p in self._of(FollowerRuntime)]
         )
         self.fixed_records = [
-            FIXED_KINDS[p.kind](p.target, _plain(p.value, p.kind))
+            FIXED_KINDS[p.kind](p.target, plain_value(p.value, p.kind))
             for p in self._of(FixedRuntime)
         ]
 
@@ -403,22 +316,11 @@ class ManagerController(Controller):
 
     def check_design(self, design: Design) -> list[EditorPart]:
         """Every problem of a design for this manager, before anything changes."""
-        problems = []
-        for record, (file, line) in zip(design.records, design.lines):
-            if isinstance(record, PalettePart) and record.name not in self.children:
-                known = ", ".join(self.children) or "none"
-                problems.append(
-                    f"{file}:{line}: palette names child {record.name!r}, which"
-                    f" {self.mri} does not have (children: {known})"
-                )
-        try:
-            parts = self._build_parts(design.records)
-        except BadValueError as e:
-            problems.extend(f"{design.path}: {p}" for p in str(e).splitlines())
-            parts = []
-        if problems:
-            raise BadValueError("\n".join(problems))
-        return parts
+        return plan.check_design(self, design)
+
+    def design_records(self) -> list[Any]:
+        """What ``save`` writes: model, palette, exports, followers, fixed."""
+        return plan.design_records(self)
 
     # ---- load / save / edits
     async def do_load(self, design: str) -> None:
@@ -461,32 +363,6 @@ class ManagerController(Controller):
         self.block.meta.tags = tuple(tags)
         self.block.notify([[["meta", "tags"], tags]])
 
-    def design_records(self) -> list[Any]:
-        """What ``save`` writes: model, palette, exports, followers, fixed."""
-        records: list[Any] = []
-        if self.model_value:
-            records.append(ModelPart(self.model_value))
-        for row in tables.rows(self.layout.value):
-            records.append(
-                PalettePart(
-                    row["name"], round(row["x"]), round(row["y"]), row["visible"]
-                )
-            )
-        records.extend(self._records_from_tables())
-        exported = {p.source for p in self._of(ExportRuntime)}
-        followed = {p.target for p in self._of(FollowerRuntime)}
-        assert self.process is not None
-        for name, mri in self.children.items():
-            block = self.process.get_block(mri)
-            for field, attr in block.attributes.items():
-                dotted = f"{name}.{field}"
-                if not attr.meta.writeable or dotted in exported | followed:
-                    continue
-                kind = fixed_kind(attr)
-                if kind is not None:
-                    records.append(FIXED_KINDS[kind](dotted, _plain(attr.value, kind)))
-        return records
-
     async def do_save(self, design: str = "") -> None:
         """Save the current settings as a design (default: the loaded one)."""
         name = design or self.design.value
@@ -500,7 +376,9 @@ class ManagerController(Controller):
             records = self.design_records()
             self.store.save(name, records)
             fixed = [r for r in records if type(r) in FIXED_KINDS.values()]
-            self._install(self._build_parts(self._records_from_tables() + fixed))
+            self._install(
+                plan.build_parts(self, plan.records_from_tables(self) + fixed)
+            )
             self._refresh_choices()
             self.design.set_value(name)
             self.modified.set_value(False)
@@ -510,11 +388,11 @@ class ManagerController(Controller):
 
     async def _edit_tables(self, exports=None, followers=None, layout=None) -> None:
         """Change the tables: the manager goes to Disabled with the new parts."""
-        records = self._records_from_tables(exports, followers)
+        records = plan.records_from_tables(self, exports, followers)
         # an attribute now exported or followed is no longer fixed
         moving = {r.source if isinstance(r, ExportPart) else r.name for r in records}
         records += [r for r in self.fixed_records if r.name not in moving]
-        parts = self._build_parts(records)  # problems raised before any change
+        parts = plan.build_parts(self, records)  # problems raised before any change
 
         async def reload() -> None:
             await self.fire("disable")
@@ -565,38 +443,3 @@ class ManagerController(Controller):
                 return tables.columns(self.layout.meta, layout_rows)
         known = ", ".join(r["name"] for r in layout_rows) or "none"
         raise BadValueError(f"{self.mri}: no child {block_name!r} (children: {known})")
-
-
-def default_designs_dir() -> Path:
-    """``$MALCOLM_DESIGNS_DIR``, else ``designs/`` in the working directory."""
-    return Path(os.environ.get("MALCOLM_DESIGNS_DIR") or Path.cwd() / "designs")
-
-
-def fixed_kind(attr: Attribute) -> str | None:
-    """The ``fixed.<Type>`` a child attribute saves as (None: not savable)."""
-    from malcolm.core import TableMeta
-
-    meta = attr.meta
-    if isinstance(meta, TableMeta):
-        return "fixed.Table"
-    if isinstance(meta, ChoiceMeta):
-        return "fixed.Enum"
-    if isinstance(meta, BooleanMeta):
-        return "fixed.Bool"
-    if isinstance(meta, StringMeta):
-        return "fixed.String"
-    if isinstance(meta, NumberMeta):
-        return "fixed.Float" if meta.dtype.startswith("float") else "fixed.Int"
-    return None
-
-
-def _plain(value: Any, kind: str) -> Any:
-    if kind == "fixed.Table":
-        columns = list(value)
-        n = len(value[columns[0]]) if columns else 0
-        return [{c: _scalar(value[c][i]) for c in columns} for i in range(n)]
-    return _scalar(value)
-
-
-def _scalar(v: Any) -> Any:
-    return v.item() if hasattr(v, "item") else v
