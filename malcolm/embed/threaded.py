@@ -1,30 +1,5 @@
-"""Use a malcolm Process from ordinary (blocking) Python code.
-
-A :class:`~malcolm.core.Process` lives on one asyncio loop. Scripts, GUIs and
-test harnesses usually have no loop of their own, so :class:`ThreadedProcess`
-runs the loop in a background thread and offers blocking calls that may be
-made from any other thread::
-
-    from malcolm.demo import demo_process
-    from malcolm.embed import start_process
-
-    with start_process(demo_process()) as tp:
-        hello = tp.block("HELLO")
-        print(hello.greet(name="me"))          # {'greeting': 'Hello me'}
-        counter = tp.block("COUNTER")
-        counter.counter.put(3)
-        counter.increment()
-        assert counter.counter.value == 4.0
-        counter.state.when("Ready", timeout=5)
-
-Errors raised by the process (``NotAllowedError``, ``BadValueError``,
-``AbortedError``...) are raised again, unchanged, in the calling thread.
-Subscription callbacks run in one dispatch thread of the ThreadedProcess, in
-the order the changes happened, so a callback may itself make blocking calls.
-
-For code that already runs on an asyncio loop, ``async with running(p):``
-starts the process on the current loop and stops it on the way out.
-"""
+"""ThreadedProcess: a Process on an asyncio loop in a background thread,
+driven by blocking calls from any other thread."""
 
 from __future__ import annotations
 
@@ -33,35 +8,23 @@ import concurrent.futures
 import logging
 import queue
 import threading
-from collections.abc import AsyncIterator, Callable, Coroutine, Iterable, Sequence
-from contextlib import asynccontextmanager
+from collections.abc import Callable, Coroutine, Iterable, Sequence
 from typing import Any, TypeVar
 
 from malcolm.core import (
     AbortedError,
-    Attribute,
     BadValueError,
-    Method,
-    NotFoundError,
     Process,
     Subscription,
     WaitTimeoutError,
 )
 
-__all__ = [
-    "AttributeProxy",
-    "BlockProxy",
-    "EmbeddedSubscription",
-    "MethodProxy",
-    "ThreadedProcess",
-    "from_file",
-    "running",
-    "serve",
-    "start_process",
-    "watch_states",
-]
+from .files import from_file
+from .proxies import BlockProxy
 
-log = logging.getLogger(__name__)
+# the logger of the single-module malcolm.embed, kept so records' names do not
+# change
+log = logging.getLogger("malcolm.embed")
 
 T = TypeVar("T")
 
@@ -69,36 +32,6 @@ _STOP = object()
 
 #: Seconds that calls still running when a ThreadedProcess stops get to finish.
 SHUTDOWN_GRACE = 1.0
-
-
-def from_file(
-    path: str, search_path: Iterable[str] = (), process: Process | None = None
-) -> Process:
-    """Build (not start) a Process from a process file.
-
-    Raises :class:`~malcolm.config.ConfigError` listing every problem.
-    """
-    try:
-        from malcolm.config.build import build_process
-    except ImportError as e:  # pragma: no cover - until the builder exists
-        from malcolm.config import expand_process, load_process_file
-
-        # still report the file's own problems first
-        expand_process(load_process_file(path, tuple(search_path)), search_path)
-        raise RuntimeError(
-            f"cannot build processes from files: {e} (malcolm.config.build)"
-        ) from None
-    return build_process(path, search_path=tuple(search_path), process=process)
-
-
-@asynccontextmanager
-async def running(process: Process) -> AsyncIterator[Process]:
-    """``async with running(p):`` starts ``p`` on the current loop, then stops it."""
-    await process.start()
-    try:
-        yield process
-    finally:
-        await process.stop()
 
 
 def start_process(process: Process, timeout: float | None = None) -> ThreadedProcess:
@@ -425,203 +358,3 @@ class ThreadedProcess:
     def __repr__(self) -> str:
         state = "running" if self.started else "stopped"
         return f"<ThreadedProcess {self.process.name!r} {state}>"
-
-
-class BlockProxy:
-    """Attributes and methods of one block, as blocking Python attributes.
-
-    ``proxy.name`` is a :class:`MethodProxy` or an :class:`AttributeProxy`;
-    ``proxy["name"]`` does the same for names that clash with Python.
-    """
-
-    def __init__(self, owner: ThreadedProcess, mri: str) -> None:
-        self._owner = owner
-        self.mri = mri
-
-    def _field(self, name: str) -> AttributeProxy | MethodProxy:
-        def kind() -> type | None:
-            block = self._owner.process.get_block(self.mri)
-            if name not in block:
-                return None
-            return Method if isinstance(block[name], Method) else Attribute
-
-        found = self._owner.call_in_loop(kind)
-        if found is None:
-            raise NotFoundError(
-                f"{self.mri} has no field {name!r} (fields: {', '.join(self._names())})"
-            )
-        if found is Method:
-            return MethodProxy(self._owner, self.mri, name)
-        return AttributeProxy(self._owner, self.mri, name)
-
-    def _names(self) -> list[str]:
-        return self._owner.call_in_loop(
-            lambda: list(self._owner.process.get_block(self.mri))
-        )
-
-    def __getitem__(self, name: str) -> AttributeProxy | MethodProxy:
-        return self._field(name)
-
-    def __getattr__(self, name: str) -> AttributeProxy | MethodProxy:
-        if name.startswith("_"):
-            raise AttributeError(name)
-        try:
-            return self._field(name)
-        except NotFoundError as e:
-            raise AttributeError(str(e)) from None
-
-    def __dir__(self) -> list[str]:
-        return sorted(set(super().__dir__()) | set(self._names()))
-
-    def to_dict(self) -> dict[str, Any]:
-        """The whole block as plain data."""
-        return self._owner.get([self.mri])
-
-    def __repr__(self) -> str:
-        return f"<BlockProxy {self.mri}>"
-
-
-class AttributeProxy:
-    """One attribute: ``.value``, ``.put(v)``, ``.subscribe(cb)``, ``.when(v)``."""
-
-    def __init__(self, owner: ThreadedProcess, mri: str, name: str) -> None:
-        self._owner = owner
-        self.mri = mri
-        self.name = name
-
-    @property
-    def path(self) -> list[str]:
-        return [self.mri, self.name]
-
-    @property
-    def value(self) -> Any:
-        return self._owner.get([*self.path, "value"])
-
-    def to_dict(self) -> dict[str, Any]:
-        return self._owner.get(self.path)
-
-    @property
-    def meta(self) -> dict[str, Any]:
-        return self._owner.get([*self.path, "meta"])
-
-    def put(self, value: Any, timeout: float | None = None) -> None:
-        """Put ``value``; returns when the put is complete."""
-        self._owner.put(self.path, value, timeout)
-
-    def subscribe(
-        self, callback: Callable[[Any], None], delta: bool = False
-    ) -> EmbeddedSubscription:
-        """``callback(value)`` now and on every change (the dispatch thread).
-
-        With ``delta=True`` the callback gets lists of changes to the whole
-        attribute (value, alarm, timeStamp...) instead.
-        """
-        path = self.path if delta else [*self.path, "value"]
-        return self._owner.subscribe(path, callback, delta)
-
-    def when(
-        self, match: Any, timeout: float | None = None, bad_values: Iterable[Any] = ()
-    ) -> Any:
-        """Wait until the value equals ``match`` (or ``match(value)``)."""
-        return self._owner.when([*self.path, "value"], match, timeout, bad_values)
-
-    def __repr__(self) -> str:
-        return f"<AttributeProxy {self.mri}.{self.name}>"
-
-
-class MethodProxy:
-    """One method: call it with keyword arguments; it returns what it returns."""
-
-    def __init__(self, owner: ThreadedProcess, mri: str, name: str) -> None:
-        self._owner = owner
-        self.mri = mri
-        self.name = name
-
-    def __call__(self, **params: Any) -> Any:
-        return self._owner.post([self.mri, self.name], params)
-
-    def call(
-        self, params: dict[str, Any] | None = None, timeout: float | None = None
-    ) -> Any:
-        """Call with a dict of parameters; WaitTimeoutError after ``timeout``."""
-        return self._owner.post([self.mri, self.name], params, timeout)
-
-    def future(self, **params: Any) -> concurrent.futures.Future[Any]:
-        """Start the call and return at once (``.result()`` waits)."""
-        return self._owner.post_async([self.mri, self.name], params)
-
-    @property
-    def meta(self) -> dict[str, Any]:
-        return self._owner.get([self.mri, self.name, "meta"])
-
-    def __repr__(self) -> str:
-        return f"<MethodProxy {self.mri}.{self.name}()>"
-
-
-def watch_states(
-    process: Process, logger: logging.Logger | None = None
-) -> list[Subscription]:
-    """Log ``MRI: Old -> New`` for every state change of every block, and
-    ``MRI: health: message`` when a block's health stops being OK.
-
-    Subscribe before ``process.start()`` to see ``Disabled -> Resetting``.
-    Returns the subscriptions (pass each to ``process.unsubscribe``).
-    """
-    logger = logger or logging.getLogger("malcolm.serve")
-    subs = []
-    for mri in process.mris:
-        last: dict[str, Any] = {}
-
-        def on_state(value: Any, mri: str = mri, last: dict[str, Any] = last) -> None:
-            before = last.get("state")
-            last["state"] = value
-            if before is not None and value != before:
-                logger.info("%s: %s -> %s", mri, before, value)
-
-        def on_health(value: Any, mri: str = mri, last: dict[str, Any] = last) -> None:
-            before = last.get("health")
-            last["health"] = value
-            if before is not None and value != before:
-                level = logging.INFO if value == "OK" else logging.WARNING
-                logger.log(level, "%s: health: %s", mri, value)
-
-        block = process.get_block(mri)
-        subs.append(process.subscribe([mri, "state", "value"], on_state, False))
-        if "health" in block:
-            subs.append(process.subscribe([mri, "health", "value"], on_health, False))
-    return subs
-
-
-async def serve(
-    process: Process,
-    ready: Callable[[Process], None] | None = None,
-    signals: Iterable[int] | None = None,
-    logger: logging.Logger | None = None,
-) -> None:
-    """Start ``process`` on the current loop, logging state changes; run until
-    one of ``signals`` (default SIGINT and SIGTERM) arrives, then stop it.
-
-    ``ready(process)`` is called once every block has started.
-    """
-    import signal as _signal
-
-    loop = asyncio.get_running_loop()
-    stop = asyncio.Event()
-    sigs = list(signals) if signals is not None else [_signal.SIGINT, _signal.SIGTERM]
-    for sig in sigs:
-        loop.add_signal_handler(sig, stop.set)
-    subs = watch_states(process, logger)
-    try:
-        await process.start()
-        if ready is not None:
-            ready(process)
-        await stop.wait()
-        (logger or logging.getLogger("malcolm.serve")).info("stopping")
-    finally:
-        for sig in sigs:
-            loop.remove_signal_handler(sig)
-        try:
-            await process.stop()
-        finally:
-            for sub in subs:
-                process.unsubscribe(sub)

@@ -1,0 +1,91 @@
+"""Run a Process on the current asyncio loop: ``running``, ``serve`` and the
+state-change log that ``serve`` writes (``watch_states``)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import AsyncIterator, Callable, Iterable
+from contextlib import asynccontextmanager
+from typing import Any
+
+from malcolm.core import Process, Subscription
+
+
+@asynccontextmanager
+async def running(process: Process) -> AsyncIterator[Process]:
+    """``async with running(p):`` starts ``p`` on the current loop, then stops it."""
+    await process.start()
+    try:
+        yield process
+    finally:
+        await process.stop()
+
+
+def watch_states(
+    process: Process, logger: logging.Logger | None = None
+) -> list[Subscription]:
+    """Log ``MRI: Old -> New`` for every state change of every block, and
+    ``MRI: health: message`` when a block's health stops being OK.
+
+    Subscribe before ``process.start()`` to see ``Disabled -> Resetting``.
+    Returns the subscriptions (pass each to ``process.unsubscribe``).
+    """
+    logger = logger or logging.getLogger("malcolm.serve")
+    subs = []
+    for mri in process.mris:
+        last: dict[str, Any] = {}
+
+        def on_state(value: Any, mri: str = mri, last: dict[str, Any] = last) -> None:
+            before = last.get("state")
+            last["state"] = value
+            if before is not None and value != before:
+                logger.info("%s: %s -> %s", mri, before, value)
+
+        def on_health(value: Any, mri: str = mri, last: dict[str, Any] = last) -> None:
+            before = last.get("health")
+            last["health"] = value
+            if before is not None and value != before:
+                level = logging.INFO if value == "OK" else logging.WARNING
+                logger.log(level, "%s: health: %s", mri, value)
+
+        block = process.get_block(mri)
+        subs.append(process.subscribe([mri, "state", "value"], on_state, False))
+        if "health" in block:
+            subs.append(process.subscribe([mri, "health", "value"], on_health, False))
+    return subs
+
+
+async def serve(
+    process: Process,
+    ready: Callable[[Process], None] | None = None,
+    signals: Iterable[int] | None = None,
+    logger: logging.Logger | None = None,
+) -> None:
+    """Start ``process`` on the current loop, logging state changes; run until
+    one of ``signals`` (default SIGINT and SIGTERM) arrives, then stop it.
+
+    ``ready(process)`` is called once every block has started.
+    """
+    import signal as _signal
+
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    sigs = list(signals) if signals is not None else [_signal.SIGINT, _signal.SIGTERM]
+    for sig in sigs:
+        loop.add_signal_handler(sig, stop.set)
+    subs = watch_states(process, logger)
+    try:
+        await process.start()
+        if ready is not None:
+            ready(process)
+        await stop.wait()
+        (logger or logging.getLogger("malcolm.serve")).info("stopping")
+    finally:
+        for sig in sigs:
+            loop.remove_signal_handler(sig)
+        try:
+            await process.stop()
+        finally:
+            for sub in subs:
+                process.unsubscribe(sub)
