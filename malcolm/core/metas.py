@@ -3,6 +3,9 @@
 Each meta validates values (returning the canonical form, or raising
 BadValueError with a message that names the problem) and converts itself to
 the Malcolm structure as plain data (``to_dict``).
+
+The array metas and TableMeta are in :mod:`malcolm.core.arrays` and are
+re-exported here.
 """
 
 from __future__ import annotations
@@ -257,221 +260,6 @@ class ChoiceMeta(Meta):
         return d
 
 
-class ArrayMeta(Meta):
-    """Base for array metas: values are tuples of the element type."""
-
-    nt_typeid = NT_SCALAR_ARRAY
-    element: Meta
-
-    def validate(self, value: Any) -> tuple[Any, ...]:
-        out = []
-        for i, v in enumerate(self.items(value)):
-            try:
-                out.append(self.element.validate(v))
-            except BadValueError as e:
-                raise BadValueError(f"[{i}]: {e}") from None
-        return tuple(out)
-
-    def items(self, value: Any) -> list[Any]:
-        """The elements of an array value (not yet validated)."""
-        if value is None:
-            return []
-        if (
-            isinstance(value, str | bytes | Mapping)
-            or not isinstance(value, Iterable)
-            or getattr(value, "ndim", 1) == 0
-        ):
-            raise BadValueError(f"expected an array, got {_describe(value)}")
-        return list(value)
-
-    def default(self) -> tuple[Any, ...]:
-        return ()
-
-
-class NumberArrayMeta(ArrayMeta):
-    typeid = "malcolm:core/NumberArrayMeta:1.0"
-
-    def __init__(
-        self,
-        dtype: str = "float64",
-        description: str = "",
-        tags: Iterable[str] = (),
-        writeable: bool = False,
-        label: str = "",
-    ) -> None:
-        super().__init__(description, tags, writeable, label)
-        self.dtype = dtype
-        self.element = NumberMeta(dtype)
-
-    def to_dict(self) -> dict[str, Any]:
-        d = self._common()
-        d["dtype"] = self.dtype
-        return d
-
-
-class StringArrayMeta(ArrayMeta):
-    typeid = "malcolm:core/StringArrayMeta:1.0"
-
-    def __init__(
-        self,
-        description: str = "",
-        tags: Iterable[str] = (),
-        writeable: bool = False,
-        label: str = "",
-    ) -> None:
-        super().__init__(description, tags, writeable, label)
-        self.element = StringMeta()
-
-
-class BooleanArrayMeta(ArrayMeta):
-    typeid = "malcolm:core/BooleanArrayMeta:1.0"
-
-    def __init__(
-        self,
-        description: str = "",
-        tags: Iterable[str] = (),
-        writeable: bool = False,
-        label: str = "",
-    ) -> None:
-        super().__init__(description, tags, writeable, label)
-        self.element = BooleanMeta()
-
-
-class ChoiceArrayMeta(ArrayMeta):
-    typeid = "malcolm:core/ChoiceArrayMeta:1.0"
-
-    def __init__(
-        self,
-        choices: Sequence[str] = (),
-        description: str = "",
-        tags: Iterable[str] = (),
-        writeable: bool = False,
-        label: str = "",
-    ) -> None:
-        super().__init__(description, tags, writeable, label)
-        self.choices = tuple(choices)
-        self.element = ChoiceMeta(choices)
-
-    def to_dict(self) -> dict[str, Any]:
-        d = self._common()
-        d["choices"] = list(self.choices)
-        return d
-
-
-class TableMeta(Meta):
-    """A table: named columns, each an array meta.
-
-    Values are dicts of column name to tuple, all the same length. A list of
-    row dicts (as saved designs write tables) is accepted too.
-    """
-
-    typeid = "malcolm:core/TableMeta:1.0"
-    nt_typeid = NT_TABLE
-
-    def __init__(
-        self,
-        elements: Mapping[str, ArrayMeta],
-        description: str = "",
-        tags: Iterable[str] = (),
-        writeable: bool = False,
-        label: str = "",
-    ) -> None:
-        super().__init__(description, tags, writeable, label)
-        self.elements = dict(elements)
-        for k, meta in self.elements.items():
-            if not isinstance(meta, ArrayMeta):
-                raise BadValueError(
-                    f"column {k}: a table column needs an array meta, got {meta!r}"
-                )
-
-    def validate(self, value: Any) -> dict[str, tuple[Any, ...]]:
-        """Accept columns ``{name: [...]}`` or rows ``[{name: v}, ...]``.
-
-        Errors name the column and the row, e.g. ``row 2, column x: ...``.
-        """
-        if value is None:
-            return self.default()
-        if isinstance(value, list | tuple):
-            return self._validate_rows(value)
-        if not isinstance(value, Mapping):
-            raise BadValueError(f"expected a table, got {_describe(value)}")
-        return self._validate_columns(value)
-
-    def _validate_rows(self, rows: Sequence[Any]) -> dict[str, tuple[Any, ...]]:
-        cols: dict[str, list[Any]] = {k: [] for k in self.elements}
-        for i, row in enumerate(rows):
-            if not isinstance(row, Mapping):
-                raise BadValueError(
-                    f"row {i}: expected a mapping of column values,"
-                    f" got {_describe(row)}"
-                )
-            extra = [k for k in row if k not in self.elements]
-            if extra:
-                raise BadValueError(
-                    f"row {i}: unknown column {extra[0]!r}"
-                    f" (columns: {', '.join(self.elements) or 'none'})"
-                )
-            for k, meta in self.elements.items():
-                element = meta.element
-                try:
-                    v = row.get(k)
-                    cols[k].append(
-                        element.default() if v is None else element.validate(v)
-                    )
-                except BadValueError as e:
-                    raise BadValueError(f"row {i}, column {k}: {e}") from None
-        return {k: tuple(v) for k, v in cols.items()}
-
-    def _validate_columns(self, value: Mapping[str, Any]) -> dict[str, tuple[Any, ...]]:
-        extra = [k for k in value if k not in self.elements and k != "typeid"]
-        if extra:
-            raise BadValueError(
-                f"unknown column {extra[0]!r}"
-                f" (columns: {', '.join(self.elements) or 'none'})"
-            )
-        raw: dict[str, list[Any]] = {}
-        for k, meta in self.elements.items():
-            if k in value:
-                try:
-                    raw[k] = meta.items(value[k])
-                except BadValueError as e:
-                    raise BadValueError(f"column {k}: {e}") from None
-        lengths = {k: len(v) for k, v in raw.items()}
-        n = max(lengths.values(), default=0)
-        for k, length in lengths.items():
-            if length != n:
-                longest = next(c for c, m in lengths.items() if m == n)
-                raise BadValueError(
-                    f"column {k} has {length} rows, but column {longest} has {n}"
-                )
-        out: dict[str, tuple[Any, ...]] = {}
-        for k, meta in self.elements.items():
-            element = meta.element
-            if k not in raw:  # a missing column is filled with defaults
-                out[k] = tuple(element.default() for _ in range(n))
-                continue
-            col = []
-            for i, v in enumerate(raw[k]):
-                try:
-                    col.append(element.validate(v))
-                except BadValueError as e:
-                    raise BadValueError(f"row {i}, column {k}: {e}") from None
-            out[k] = tuple(col)
-        return out
-
-    def default(self) -> dict[str, tuple[Any, ...]]:
-        return {k: () for k in self.elements}
-
-    def rows(self, value: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
-        n = len(next(iter(value.values()), ()))
-        return [{k: value[k][i] for k in self.elements} for i in range(n)]
-
-    def to_dict(self) -> dict[str, Any]:
-        d = self._common()
-        d["elements"] = {k: m.to_dict() for k, m in self.elements.items()}
-        return d
-
-
 class MapMeta(Meta):
     """Named elements plus which of them are required (a method's takes/returns)."""
 
@@ -597,3 +385,13 @@ def _plain(value: Any) -> Any:
 
 
 plain = _plain
+
+
+# The array metas and TableMeta live in .arrays, which builds on the metas
+# above: imported last, so that those exist, and re-exported from here.
+from .arrays import ArrayMeta as ArrayMeta  # noqa: E402
+from .arrays import BooleanArrayMeta as BooleanArrayMeta  # noqa: E402
+from .arrays import ChoiceArrayMeta as ChoiceArrayMeta  # noqa: E402
+from .arrays import NumberArrayMeta as NumberArrayMeta  # noqa: E402
+from .arrays import StringArrayMeta as StringArrayMeta  # noqa: E402
+from .arrays import TableMeta as TableMeta  # noqa: E402
