@@ -64,14 +64,20 @@ class NumberArrayMeta(ArrayMeta):
         tags: Iterable[str] = (),
         writeable: bool = False,
         label: str = "",
+        display: Mapping[str, Any] | None = None,
     ) -> None:
         super().__init__(description, tags, writeable, label)
         self.dtype = dtype
-        self.element = NumberMeta(dtype)
+        self.element = NumberMeta(dtype, display=display)
+
+    @property
+    def display(self) -> dict[str, Any]:
+        return self.element.display
 
     def to_dict(self) -> dict[str, Any]:
         d = self._common()
         d["dtype"] = self.dtype
+        d["display"] = self.element.to_dict()["display"]
         return d
 
 

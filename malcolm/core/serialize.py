@@ -232,7 +232,11 @@ def _number_meta(d: Mapping[str, Any], path: Path, name: str) -> NumberMeta:
 
 
 def _number_array_meta(d: Mapping[str, Any], path: Path, name: str) -> Meta:
-    return NumberArrayMeta(_get(d, "dtype", str, "float64", path), **_common(d, path))
+    display = dict(_get(d, "display", Mapping, {}, path))
+    display.pop("typeid", None)
+    return NumberArrayMeta(
+        _get(d, "dtype", str, "float64", path), display=display, **_common(d, path)
+    )
 
 
 def _simple(cls: type[Meta]) -> Builder:

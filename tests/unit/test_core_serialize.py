@@ -506,3 +506,16 @@ def test_any_block_round_trips(fields):
         block.add(Attribute(name, meta, value))
     d = block.to_dict()
     assert from_dict(d, "B").to_dict() == d
+
+
+def test_number_array_meta_carries_display_like_number_meta():
+    from malcolm.core import NumberArrayMeta
+    from malcolm.core.serialize import from_dict
+
+    meta = NumberArrayMeta("int32", "positions", display={"units": "mm"})
+    d = meta.to_dict()
+    assert d["display"]["typeid"] == "display_t"
+    assert d["display"]["units"] == "mm" and d["display"]["precision"] == 0
+    again = from_dict(d)
+    assert again.to_dict() == d
+    assert again.display["units"] == "mm"
