@@ -112,6 +112,8 @@ class Controller:
         self._fsm = _Guards(self)
         self._machine = self.model.build_machine(self._fsm)
         self._op: asyncio.Task[Any] | None = None
+        self._claim: object | None = None  # an interrupter waiting to take over
+        self._claim_name = ""
         self._guard_values: dict[str, bool] = {}
         self._op_name = ""
         self.state_listeners: list[Callable[[str, str], None]] = []
@@ -200,11 +202,15 @@ class Controller:
         assert self.process is not None
         for name in self.parts:
             self.tasks.setdefault(name, Task(self.process, name, self._on_progress))
-        await self.operation("init", self._transition_and_settle("init"))
+        try:
+            await self.operation("init", self._transition_and_settle("init"))
+        except Exception as e:
+            # one block that cannot start must not stop the others: it waits
+            # (Fault or Disabled, the reason in health) for a reset
+            log.error("%s did not start: %s", self.mri, _describe(e))
 
     async def stop(self) -> None:
-        if self._op is not None and not self._op.done():
-            self._op.cancel()
+        self.cancel_now()
         for task in self.tasks.values():
             task.stop()
 
@@ -316,20 +322,48 @@ class Controller:
                 f" (allowed in {allowed})"
             )
 
+    def side_operations(self) -> list[asyncio.Future[Any]]:
+        """Work running beside the main operation (a runnable's seek)."""
+        return []
+
+    def busy_with(self) -> str | None:
+        """What is in progress (so another operation must wait), or None."""
+        if self._claim is not None:
+            return self._claim_name
+        if self._op is not None and not self._op.done():
+            return self._op_name
+        if any(not f.done() for f in self.side_operations()):
+            return "a pause or seek"
+        return None
+
     async def operation(self, name: str, coro: Any, interrupt: bool = False) -> Any:
         """Run one operation at a time; Fault on error, AbortedError if cancelled.
 
-        ``interrupt`` operations (abort, disable, pause) cancel the one in
-        progress first.
+        ``interrupt`` operations (abort, disable) cancel whatever is in
+        progress first; of two racing interrupters the later one wins and the
+        earlier gets AbortedError. Others are refused while anything runs.
         """
-        if self._op is not None and not self._op.done():
-            if not interrupt:
+        busy = self.busy_with()
+        if busy is not None and not interrupt:
+            coro.close()
+            raise NotAllowedError(
+                f"{self.mri}: cannot {name} while {busy} is in progress"
+                f" (state {self.current})"
+            )
+        if interrupt:
+            claim = object()
+            self._claim, self._claim_name = claim, name
+            try:
+                await self.cancel_operation()
+            finally:
+                superseded = self._claim is not claim
+                if not superseded:
+                    self._claim = None
+            if superseded:
                 coro.close()
-                raise NotAllowedError(
-                    f"{self.mri}: cannot {name} while {self._op_name} is in progress"
-                    f" (state {self.current})"
+                raise AbortedError(
+                    f"{self.mri}: {name} was superseded by {self._claim_name}"
                 )
-            await self.cancel_operation()
         op = asyncio.ensure_future(self._guarded(name, coro))
         self._op, self._op_name = op, name
         await asyncio.wait({op})
@@ -338,10 +372,20 @@ class Controller:
         return op.result()
 
     async def cancel_operation(self) -> None:
-        op = self._op
-        if op is not None and not op.done():
-            op.cancel()
-            await asyncio.wait({op})
+        """Cancel the main operation and any side work, and wait for them."""
+        running = [f for f in [self._op, *self.side_operations()] if f is not None]
+        running = [f for f in running if not f.done()]
+        for f in running:
+            f.cancel()
+        if running:
+            await asyncio.wait(running)
+
+    def cancel_now(self) -> None:
+        """Cancel everything in progress without waiting (fault, stop)."""
+        me = asyncio.current_task()
+        for f in [self._op, *self.side_operations()]:
+            if f is not None and not f.done() and f is not me:
+                f.cancel()
 
     async def _guarded(self, name: str, coro: Any) -> Any:
         try:

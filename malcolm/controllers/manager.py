@@ -259,8 +259,7 @@ class ManagerController(Controller):
         if self.model.transitions_for("fault", self.current):
             op = self._op
             inside = op is not None and op is asyncio.current_task()
-            if op is not None and not op.done() and not inside:
-                op.cancel()
+            self.cancel_now()  # everything but the operation doing the check
             self.move("fault")
             if inside:
                 # found by the operation's own check: its caller gets the reason

@@ -293,15 +293,33 @@ class RunnableController(ManagerController):
             steps = self.completed.value
         steps = max(0, min(int(steps), self.total.value))
         self._check_not_seeking("pause")
+        if self._claim is not None:
+            raise NotAllowedError(
+                f"{self.mri}: cannot pause while {self._claim_name} is in progress"
+                f" (state {self.current})"
+            )
         try:
             if self.current == "Running":
-                self._paused = True
                 inner = self._run_inner
-                if inner is not None and not inner.done():
-                    inner.cancel()
-                    await asyncio.wait({inner})
+                if inner is None or inner.done():
+                    raise NotAllowedError(
+                        f"{self.mri}: cannot pause a run that is not running yet"
+                        f" (state {self.current})"
+                    )
+                self._paused = True
+                self.choose("pause")
+                inner.cancel()
+                await asyncio.wait({inner})
+                # what the cancelled run phase subscribed to goes with it
+                for task in self.tasks.values():
+                    task.stop()
                 await self._seek("pause", steps)
             else:
+                if self.current == "Armed" and self.busy_with() == "run":
+                    raise NotAllowedError(
+                        f"{self.mri}: cannot pause a run that is not running yet"
+                        f" (state {self.current})"
+                    )
                 await self._seek("pause", steps)
         except (NotAllowedError, BadValueError, AbortedError):
             raise
@@ -337,9 +355,13 @@ class RunnableController(ManagerController):
     async def _seek(self, trigger: str, steps: int) -> None:
         self.choose(trigger)  # fail early if not allowed here
         self._check_not_seeking(trigger)
-        if self._op is not None and not self._op.done() and self._op_name != "run":
+        # beside a run only once it runs (or waits Paused); never beside an
+        # abort or disable taking over, nor any other operation
+        beside_run = self._op_name == "run" and self.current in ("Running", "Paused")
+        busy = self.busy_with()
+        if busy is not None and not (busy == "run" and beside_run):
             raise NotAllowedError(
-                f"{self.mri}: cannot {trigger} while {self._op_name} is in progress"
+                f"{self.mri}: cannot {trigger} while {busy} is in progress"
                 f" (state {self.current})"
             )
 
@@ -365,17 +387,8 @@ class RunnableController(ManagerController):
                 f" (state {self.current})"
             )
 
-    async def operation(self, name: str, coro: Any, interrupt: bool = False) -> Any:
-        """As the base, and: a pause or seek in flight is cancelled by an
-        interrupting operation and refuses the others."""
-        seek = self._seek_op
-        if seek is not None and not seek.done():
-            if not interrupt:
-                coro.close()
-                self._check_not_seeking(name)
-            seek.cancel()
-            await asyncio.wait({seek})
-        return await super().operation(name, coro, interrupt)
+    def side_operations(self) -> list[asyncio.Future[Any]]:
+        return [f for f in (self._seek_op, self._run_inner) if f is not None]
 
     async def go_fault(self, error: BaseException | str) -> None:
         await super().go_fault(error)
@@ -404,7 +417,4 @@ class RunnableController(ManagerController):
             await self.fire("abort")
             await self.settle()
 
-        inner = self._run_inner
-        if inner is not None and not inner.done():
-            inner.cancel()
         await self.operation("abort", abort(), interrupt=True)
