@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from malcolm.core import MalcolmError, PhaseTimeoutError
+from malcolm.core import AbortedError, MalcolmError, PhaseTimeoutError
 
 from .task import BlockingTask, Task
 
@@ -121,4 +121,9 @@ async def run_phase(
         raise PhaseTimeoutError(
             f"{phase} phase timed out after {timeout} s waiting for part(s) {parts}"
         )
+    for fut in done:
+        if fut.cancelled():  # cancelled by someone else (a stopped task)
+            cancel_all()
+            part = running[fut].part
+            raise PhaseError(phase, part, AbortedError(f"{part} was cancelled"))
     return {running[f].part: f.result() for f in done}

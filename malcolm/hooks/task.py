@@ -231,6 +231,8 @@ class BlockingTask:
         flat = _flatten(futures)
         done, pending = concurrent.futures.wait(flat, timeout=timeout)
         if pending:
+            for fut in pending:  # as the async Task does: nothing left behind
+                fut.cancel()
             raise WaitTimeoutError(
                 f"{self.part}: {len(pending)} operation(s) not done after {timeout} s"
             )

@@ -1,0 +1,68 @@
+"""Cancellation leaves nothing behind and reaches callers as malcolm errors."""
+
+import asyncio
+
+import pytest
+
+from malcolm.controllers.runnable import RunnableController
+from malcolm.controllers.stateful import StatefulController
+from malcolm.core import Process, WaitTimeoutError
+from malcolm.fsm import RunnableDevice
+from malcolm.hooks import PhaseError
+from malcolm.parts import Part
+from malcolm.parts.demo import CounterPart
+
+from .scans import compound, run
+
+
+def test_blocking_wait_all_timeout_drops_its_waiters():
+    errors = []
+
+    class Waiter(Part):
+        @RunnableDevice.Run
+        def run(self, task, device):  # a plain def: a BlockingTask
+            for i in range(3):
+                try:
+                    task.wait_all(
+                        task.when_matches(("C", "counter"), 100 + i), timeout=0.02
+                    )
+                except WaitTimeoutError as e:
+                    errors.append(e)
+
+    async def scenario():
+        p = Process()
+        p.add_controller(StatefulController("C", [CounterPart("counter")]))
+        p.add_controller(RunnableController("DET", [Waiter("w")]))
+        await p.start()
+        await p.post(["DET", "configure"], {"generator": compound(("x", 1))})
+        await p.post(["DET", "run"])
+        await asyncio.sleep(0.01)
+        return len(p._subs.get("C", []))
+
+    assert run(scenario) == 0
+    assert len(errors) == 3
+
+
+def test_a_hook_cancelled_from_outside_is_a_phase_error_not_cancelled_error():
+    started = asyncio.Event()
+
+    class Slow(Part):
+        @RunnableDevice.Validate
+        async def validate(self, task, device):
+            started.set()
+            await task.when_matches(("DET", "health"), "never", timeout=5)
+
+    async def scenario():
+        p = Process()
+        c = RunnableController("DET", [Slow("slow")])
+        p.add_controller(c)
+        await p.start()
+        pending = asyncio.ensure_future(
+            p.post(["DET", "validate"], {"generator": compound(("x", 1))})
+        )
+        await started.wait()
+        c.tasks["slow"].stop()  # what abort, reset and disable do
+        with pytest.raises(PhaseError, match="Validate phase: part 'slow'"):
+            await pending
+
+    run(scenario)
