@@ -93,7 +93,7 @@ async def run_phase(
             btask = BlockingTask(task)
             blocking.append(btask)
             args = (btask, device)[: hook.nargs]
-            fut = loop.run_in_executor(executor(), hook.func, *args)
+            fut = loop.run_in_executor(executor(), btask.call, hook.func, *args)
         running[fut] = hook
 
     def cancel_all() -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import itertools
+import threading
 from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -170,6 +171,14 @@ class Task:
             self.unsubscribe(sid)
 
 
+_current = threading.local()
+
+
+def current_blocking_task() -> BlockingTask | None:
+    """The BlockingTask of the hook function running in this thread, if any."""
+    return getattr(_current, "task", None)
+
+
 class BlockingTask:
     """The Task API for plain ``def`` hook functions running in a worker thread.
 
@@ -188,6 +197,15 @@ class BlockingTask:
         self._callbacks = concurrent.futures.ThreadPoolExecutor(
             max_workers=1, thread_name_prefix=f"{task.part}-callbacks"
         )
+
+    def call(self, func: Callable[..., Any], *args: Any) -> Any:
+        """Run ``func`` in this thread as part of this task (views use it)."""
+        previous = current_blocking_task()
+        _current.task = self
+        try:
+            return func(*args)
+        finally:
+            _current.task = previous
 
     def _submit(self, coro_fn: Callable[[], Any]) -> concurrent.futures.Future[Any]:
         if self.cancelled:
@@ -245,7 +263,7 @@ class BlockingTask:
 
     def subscribe(self, target: Any, callback: Callable[..., Any], *args: Any) -> int:
         def in_thread(v: Any, *a: Any) -> None:
-            self._callbacks.submit(callback, v, *a)
+            self._callbacks.submit(self.call, callback, v, *a)
 
         return self._wait(
             self._submit(lambda: self._task.subscribe(target, in_thread, *args))

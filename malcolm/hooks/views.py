@@ -14,6 +14,12 @@ if TYPE_CHECKING:
     from malcolm.core import Process
 
 
+def _blocking_task() -> Any:
+    from .task import current_blocking_task  # task.py imports this module
+
+    return current_blocking_task()
+
+
 def _in_loop(process: Process) -> bool:
     try:
         return asyncio.get_running_loop() is process.loop
@@ -45,6 +51,10 @@ class FieldView:
                 " or task.put() on the event loop"
             )
         assert self.process.loop is not None
+        btask = _blocking_task()
+        if btask is not None:  # in a hook function: cancelled with its phase
+            btask.put(self.path, value, timeout)
+            return
         fut = asyncio.run_coroutine_threadsafe(
             asyncio.wait_for(self.process.put(self.path, value), timeout),
             self.process.loop,
@@ -57,6 +67,11 @@ class FieldView:
     def __call__(self, **params: Any) -> Any:
         """Call a method from a worker thread."""
         assert self.process.loop is not None
+        btask = _blocking_task()
+        if btask is not None:  # in a hook function: cancelled with its phase
+            return btask._wait(
+                btask._submit(lambda: self.process.post(self.path, params))
+            )
         fut = asyncio.run_coroutine_threadsafe(
             self.process.post(self.path, params), self.process.loop
         )

@@ -6,7 +6,7 @@ import pytest
 
 from malcolm.controllers.runnable import RunnableController
 from malcolm.controllers.stateful import StatefulController
-from malcolm.core import Process, WaitTimeoutError
+from malcolm.core import AbortedError, Process, WaitTimeoutError
 from malcolm.fsm import RunnableDevice
 from malcolm.hooks import PhaseError
 from malcolm.parts import Part
@@ -66,3 +66,38 @@ def test_a_hook_cancelled_from_outside_is_a_phase_error_not_cancelled_error():
             await pending
 
     run(scenario)
+
+
+def test_abort_stops_a_threaded_hook_writing_through_a_view():
+    import time
+
+    from malcolm.hooks import FieldView
+
+    class Writer(Part):
+        @RunnableDevice.Run
+        def run(self, task, device):  # a plain def, writing through a view
+            view = FieldView(task.process, "C", "counter")
+            for i in range(1, 40):
+                time.sleep(0.01)
+                view.put(float(i))
+
+    async def scenario():
+        p = Process()
+        p.add_controller(StatefulController("C", [CounterPart("counter")]))
+        c = RunnableController("DET", [Writer("w")])
+        p.add_controller(c)
+        await p.start()
+        await p.post(["DET", "configure"], {"generator": compound(("x", 1))})
+        pending = asyncio.ensure_future(p.post(["DET", "run"]))
+        counter = p.get_block("C").counter
+        while counter.value < 3:
+            await asyncio.sleep(0.005)
+        await p.post(["DET", "abort"])
+        at_abort = counter.value
+        await asyncio.sleep(0.2)
+        with pytest.raises(AbortedError):
+            await pending
+        return at_abort, counter.value
+
+    at_abort, later = run(scenario)
+    assert later == at_abort
