@@ -56,7 +56,10 @@ def check_value(type_name: str, value: Any) -> tuple[bool, Any]:
     if type_name == "Float":
         if isinstance(value, bool) or not isinstance(value, int | float):
             return False, value
-        return True, float(value)
+        try:
+            return True, float(value)
+        except OverflowError:  # an int too big for a float
+            return False, value
     if type_name == "Boolean":
         return isinstance(value, bool), value
     return isinstance(value, str) and value.strip() != "", value

@@ -25,6 +25,7 @@ Sections are read in order:
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,6 +51,10 @@ from .substitute import substitute_section
 from .yamlsections import Section, load_sections
 
 _INCLUDE = "include"
+
+
+#: what an mri may hold: it names channels, and directories of designs
+MRI = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_:.\-]*$")
 
 
 @dataclass(frozen=True)
@@ -174,7 +179,11 @@ class _Reader:
                 self.problems.add(section.file, line, "include needs a file name")
                 continue
             included = path.parent / target
-            resolved = included.resolve()
+            try:
+                resolved = included.resolve()
+            except (OSError, RuntimeError) as e:  # e.g. a symlink loop
+                self.problems.add(section.file, line, f"cannot read include: {e}")
+                continue
             chain = (*stack, (path.resolve(), section.file, line))
             if any(p == resolved for p, _, _ in chain):
                 files = " -> ".join(f"{f}:{n}" for _, f, n in chain)
@@ -240,7 +249,16 @@ class _Reader:
         values = dict(section.params)
         mri = values.pop("mri", None)
         if not isinstance(mri, str) or not mri.strip():
-            raise ConfigError.at(file, line, f"{section.kind} needs an 'mri' (text)")
+            raise ConfigError.at(
+                file, section.line_of(("mri",)), f"{section.kind} needs an 'mri' (text)"
+            )
+        if not MRI.match(mri) or ".." in mri:
+            raise ConfigError.at(
+                file,
+                section.line_of(("mri",)),
+                f"{section.kind}: mri {mri!r} may hold only letters, digits and"
+                " : _ - . (no spaces, slashes or '..')",
+            )
         spec = BlockSpec(section.name, mri, values, file, line, section.param_lines)
         if mri in self.mris:
             first = self.mris[mri]

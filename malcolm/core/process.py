@@ -91,7 +91,13 @@ class Process:
         self.loop = asyncio.get_running_loop()
         self.started = True
         for controller in list(self._controllers.values()):
-            await controller.start()
+            try:
+                await controller.start()
+            except Exception as e:  # one block must not stop the others
+                log.error(
+                    "%s did not start: %s: %s", controller.mri, type(e).__name__, e
+                )
+                controller.health.set_value(f"did not start: {type(e).__name__}: {e}")
 
     async def stop(self) -> None:
         for controller in list(self._controllers.values()):

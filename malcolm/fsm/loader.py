@@ -56,7 +56,7 @@ def _find(stem: str, dirs: Sequence[Path]) -> Path | None:
 def _load(path: Path, search: tuple[Path, ...], chain: tuple[Path, ...]) -> Model:
     data, problems = read_yaml(path)
     if data is None:
-        raise ModelError(problems)
+        raise ModelError(problems or [Problem(str(path), 1, "the model file is empty")])
     reader = ModelReader(path, problems)
     if not reader.check_top(data):
         raise ModelError(problems)

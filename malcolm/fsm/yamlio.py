@@ -98,6 +98,8 @@ def read_yaml(path: Path) -> tuple[Any, list[Problem]]:
         return None, [Problem(file, line, f"bad YAML: {message}")]
     except yaml.YAMLError as e:
         return None, [Problem(file, None, f"bad YAML: {e}")]
+    except RecursionError:
+        return None, [Problem(file, 1, "the document is nested too deeply")]
     finally:
         loader.dispose()
     problems = [

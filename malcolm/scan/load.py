@@ -36,10 +36,14 @@ def read_file(path: str | os.PathLike[str]) -> Any:
             return json.loads(text)
         except json.JSONDecodeError as e:
             raise GeneratorError("", f"invalid JSON: {e}") from None
+        except RecursionError:
+            raise GeneratorError("", "the document is nested too deeply") from None
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as e:
         raise GeneratorError("", "invalid YAML: " + " ".join(str(e).split())) from None
+    except RecursionError:
+        raise GeneratorError("", "the document is nested too deeply") from None
 
 
 def _finite(points: ScanPoints) -> ScanPoints:
