@@ -361,6 +361,15 @@ class _Builder:
                         item.line,
                         f"{item.kind}: missing required parameter '{name}'",
                     )
+            for key, value in kwargs.items():
+                want = _annotation(factory, key)
+                if want is not None and not _fits(value, want):
+                    ok = False
+                    self.problems.add(
+                        item.file,
+                        item.param_lines.get(key, item.line),
+                        f"{item.kind}: '{key}' must be {_say(want)}, not {value!r}",
+                    )
             if not ok:
                 return None
         try:
@@ -490,3 +499,44 @@ def build_definition(
         process = Process(expanded.mri)
     build_block(process, expanded, search_path)
     return process
+
+
+_SIMPLE = {"str": (str,), "float": (int, float), "int": (int,), "bool": (bool,)}
+
+
+def _annotation(factory: Any, key: str) -> str | None:
+    """The simple type (str/float/int/bool, maybe "| None") a keyword declares."""
+    target = factory.__init__ if inspect.isclass(factory) else factory
+    raw = getattr(target, "__annotations__", {}).get(key)
+    if not isinstance(raw, str):
+        raw = getattr(raw, "__name__", None) if raw is not None else None
+    if raw is None:
+        return None
+    parts = {p.strip() for p in raw.split("|")}
+    if parts - {"None"} and parts - {"None"} <= set(_SIMPLE) | {"Path"}:
+        return " or ".join(sorted(parts))
+    return None
+
+
+def _fits(value: Any, want: str) -> bool:
+    parts = set(want.split(" or "))
+    if value is None:
+        return "None" in parts
+    if isinstance(value, bool):
+        return "bool" in parts
+    for name in parts:
+        if name == "Path" and isinstance(value, str):
+            return True
+        if name in _SIMPLE and isinstance(value, _SIMPLE[name]):
+            return True
+    return False
+
+
+_WORDS = {"str": "text", "float": "a number", "int": "an integer",
+          "bool": "a boolean", "Path": "a path"}  # fmt: skip
+
+
+def _say(want: str) -> str:
+    parts = want.split(" or ")
+    words = sorted({_WORDS[p] for p in parts if p in _WORDS})
+    return " or ".join(words) + (" (or nothing)" if "None" in parts else "")

@@ -112,7 +112,8 @@ def test_bad_value_types(tmp_path, process):
     with pytest.raises(ConfigError) as info:
         build_definition("lab.Motor", {}, "M", [tmp_path], process=process)
     assert problems(info, tmp_path) == [
-        "lab/Motor.yaml:1: parts.SimMotorPart: expected a number (float64), got 'fast'",
+        # the keyword's annotation is checked first, at the key's own line
+        "lab/Motor.yaml:3: parts.SimMotorPart: 'velocity' must be a number, not 'fast'",
         "lab/Motor.yaml:4: ca.Enum: choices must be a list of text, not 5",
     ]
 

@@ -51,3 +51,20 @@ def test_an_mri_that_could_escape_or_confuse_is_refused(tmp_path, capsys, mri):
     f.write_text(f"block.demo.Hello:\n    mri: '{mri}'\n")
     status, text = run_cli(capsys, "check", str(f))
     assert status == 1 and f"{f}:2:" in text and "may hold only" in text
+
+
+def test_a_controller_keyword_of_the_wrong_type_is_a_problem_at_its_line(
+    tmp_path, capsys
+):
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    f = lab / "Box.yaml"
+    f.write_text(
+        "controller.RunnableController:\n    description: m\n    phase_timeout: abc\n"
+    )
+    status, text = run_cli(capsys, "check", str(f))
+    assert status == 1
+    assert (
+        f"{f}:3: controller.RunnableController: 'phase_timeout' must be a number"
+        in (text)
+    )
