@@ -118,6 +118,7 @@ def detect_kind(text: str) -> str:
     ``block.*``), so that a file too broken to parse still gets the loader
     that will explain what is wrong with it.
     """
+    text = text.lstrip("\ufeff")  # a BOM is not part of the first key
     keys = _top_level_keys(text)
     names = [k for k, _ in keys]
     if any(k in MODEL_KEYS for k in names):
@@ -193,6 +194,9 @@ def _check(
     kind: str | None,
     result: CheckResult,
 ) -> None:
+    if not file:
+        result.problems.append(Finding("<unknown>", None, "an empty file name"))
+        return
     if path.is_dir():
         empty = expand_files([file]) == [file]
         what = "a directory with no YAML files" if empty else "a directory, not a file"
@@ -371,6 +375,9 @@ def expand_files(paths: Iterable[str]) -> list[str]:
     (sorted; a directory with none stays, to be reported)."""
     files: list[str] = []
     for p in paths:
+        if not p:  # Path("") would be the working directory
+            files.append(p)
+            continue
         path = Path(p)
         found = []
         try:

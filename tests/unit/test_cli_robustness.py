@@ -68,3 +68,13 @@ def test_a_controller_keyword_of_the_wrong_type_is_a_problem_at_its_line(
         f"{f}:3: controller.RunnableController: 'phase_timeout' must be a number"
         in (text)
     )
+
+
+def test_check_reads_a_process_file_with_a_bom_and_refuses_an_empty_name(
+    tmp_path, capsys
+):
+    f = tmp_path / "p.yaml"
+    f.write_bytes(b"\xef\xbb\xbfblock.demo.Hello:\n    mri: X\n")
+    assert run_cli(capsys, "check", str(f))[0] == 0
+    status, text = run_cli(capsys, "check", "")
+    assert status == 1 and "an empty file name" in text
