@@ -58,6 +58,9 @@ class PhaseError(MalcolmError):
         super().__init__(f"{phase} phase: part {part!r} failed: {text}")
 
 
+#: how long cancelled async hooks get to finish their clean-up
+CANCEL_GRACE = 1.0
+
 _executor: concurrent.futures.ThreadPoolExecutor | None = None
 
 
@@ -102,6 +105,15 @@ async def run_phase(
         for btask in blocking:
             btask.cancel()
 
+    async def cancel_and_settle() -> None:
+        """Cancel all; give async hooks a moment to run their clean-up, so it
+        happens before the block goes to Fault (threads cannot be waited for:
+        their blocked Task calls raise AbortedError)."""
+        cancel_all()
+        waiting = [f for f, h in running.items() if h.is_async and not f.done()]
+        if waiting:
+            await asyncio.wait(waiting, timeout=CANCEL_GRACE)
+
     try:
         done, pending = await asyncio.wait(
             running, timeout=timeout, return_when=asyncio.FIRST_EXCEPTION
@@ -111,19 +123,19 @@ async def run_phase(
         raise
     for fut in done:
         if not fut.cancelled() and fut.exception() is not None:
-            cancel_all()
+            await cancel_and_settle()
             raise PhaseError(phase, running[fut].part, fut.exception()) from (
                 fut.exception()
             )
     if pending:
-        cancel_all()
+        await cancel_and_settle()
         parts = ", ".join(sorted({running[f].part for f in pending}))
         raise PhaseTimeoutError(
             f"{phase} phase timed out after {timeout} s waiting for part(s) {parts}"
         )
     for fut in done:
         if fut.cancelled():  # cancelled by someone else (a stopped task)
-            cancel_all()
+            await cancel_and_settle()
             part = running[fut].part
             raise PhaseError(phase, part, AbortedError(f"{part} was cancelled"))
     return {running[f].part: f.result() for f in done}

@@ -101,3 +101,33 @@ def test_abort_stops_a_threaded_hook_writing_through_a_view():
 
     at_abort, later = run(scenario)
     assert later == at_abort
+
+
+def test_siblings_finish_their_clean_up_before_the_block_faults():
+    cleaned = []
+
+    class Tidy(Part):
+        @RunnableDevice.Configure
+        async def configure(self, task, device):
+            try:
+                await asyncio.sleep(30)
+            finally:
+                await asyncio.sleep(0.02)  # clean-up that itself awaits
+                cleaned.append(True)
+
+    class Bad(Part):
+        @RunnableDevice.Configure
+        async def configure(self, task, device):
+            await asyncio.sleep(0.01)
+            raise ValueError("broken")
+
+    async def scenario():
+        p = Process()
+        c = RunnableController("DET", [Tidy("tidy"), Bad("bad")])
+        p.add_controller(c)
+        await p.start()
+        with pytest.raises(PhaseError, match="broken"):
+            await p.post(["DET", "configure"], {"generator": compound(("x", 1))})
+        return list(cleaned), c.block.state.value
+
+    assert run(scenario) == ([True], "Fault")
