@@ -33,14 +33,9 @@ from malcolm.editor.runtime import (
     RunnableExportRuntime,
 )
 from malcolm.parts.design import (
+    DESIGN_KINDS,
     Design,
     ExportPart,
-    FixedBool,
-    FixedEnum,
-    FixedFloat,
-    FixedInt,
-    FixedString,
-    FixedTable,
     FollowerPart,
     ModelPart,
     PalettePart,
@@ -49,14 +44,8 @@ from malcolm.parts.design import (
 if TYPE_CHECKING:
     from malcolm.controllers.manager import ManagerController
 
-FIXED_KINDS = {
-    "fixed.Int": FixedInt,
-    "fixed.Float": FixedFloat,
-    "fixed.String": FixedString,
-    "fixed.Bool": FixedBool,
-    "fixed.Enum": FixedEnum,
-    "fixed.Table": FixedTable,
-}
+#: the ``fixed.<Type>`` kinds of a saved design and their records
+FIXED_KINDS = {k: c for k, c in DESIGN_KINDS.items() if k.startswith("fixed.")}
 
 
 def default_designs_dir() -> Path:
