@@ -117,6 +117,9 @@ class Controller:
         self._guard_values: dict[str, bool] = {}
         self._op_name = ""
         self.state_listeners: list[Callable[[str, str], None]] = []
+        #: problems parts report (a lost connection...), shown in health
+        self._part_problems: dict[str, str] = {}
+        self._fault_message: str | None = None
         self.health = self._add_attr("health", StringMeta("Why the block is in Fault"))
         self.health.set_value("OK")
         self.state = self._add_attr(
@@ -407,12 +410,39 @@ class Controller:
         log.warning("%s: fault: %s", self.mri, message)
         for task in self.tasks.values():
             task.stop()
+        self._fault_message = message
         self.health.set_value(message, alarm=Alarm.major(message))
         if self.model.transitions_for("fault", self.current):
             self.move("fault")
 
     def set_health_ok(self) -> None:
-        self.health.set_value("OK", alarm=Alarm.ok)
+        """Forget the fault's reason; health shows the parts' problems, or OK."""
+        self._fault_message = None
+        self._show_health()
+
+    def set_part_health(self, part: str, message: str | None) -> None:
+        """A part reports a problem (``message``) or that it is over (None).
+
+        ``health`` shows a fault's reason first, then the parts' problems
+        (``part: message``, joined by ``; ``), else ``OK``. Reporting a
+        problem does not change the state: the part decides whether it is a
+        fault.
+        """
+        if message is None:
+            self._part_problems.pop(part, None)
+        else:
+            self._part_problems[part] = str(message)
+        self._show_health()
+
+    def _show_health(self) -> None:
+        if self._fault_message is not None:
+            return  # a fault's reason stays until reset
+        if self._part_problems:
+            text = "; ".join(f"{p}: {m}" for p, m in self._part_problems.items())
+            if text != self.health.value:
+                self.health.set_value(text, alarm=Alarm.minor(text))
+        elif self.health.value != "OK" or self.health.alarm != Alarm.ok:
+            self.health.set_value("OK", alarm=Alarm.ok)
 
     # ---- calls and puts (what every transport uses)
     async def call(self, name: str, params: Mapping[str, Any] | None = None) -> Any:

@@ -52,7 +52,6 @@ from .base import DEFAULT_PHASE_TIMEOUT, Controller
 
 __all__ = [
     "FIXED_KINDS",
-    "QUIET_STATES",
     "ManagerController",
     "default_designs_dir",
     "fixed_kind",
@@ -61,7 +60,6 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: states where a followed or fixed child that drifts sends the manager to Fault
-QUIET_STATES = {"Disabled", "Disabling", "Fault", "Resetting", "Loading"}
 
 
 def _s(name: str, description: str) -> StringMeta:
@@ -236,7 +234,7 @@ class ManagerController(Controller):
 
     # ---- drift: Fault exactly when a followed or fixed child differs
     def verify(self, part: EditorPart) -> None:
-        if part.pending or self.current in QUIET_STATES:
+        if part.pending or self.current in self.model.states_tagged("quiet"):
             return
         if part not in self.editor_parts:
             return
@@ -249,13 +247,14 @@ class ManagerController(Controller):
             self.verify(part)
 
     def fault_now(self, message: str) -> None:
-        if self.current == "Fault":
+        if self.model.is_state(self.current, "fault"):
             return
         for task in self.tasks.values():
             task.stop()
         from malcolm.core import Alarm
 
-        self.health.set_value(f"{self.mri}: {message}", alarm=Alarm.major(message))
+        self._fault_message = f"{self.mri}: {message}"
+        self.health.set_value(self._fault_message, alarm=Alarm.major(message))
         if self.model.transitions_for("fault", self.current):
             op = self._op
             inside = op is not None and op is asyncio.current_task()
@@ -267,7 +266,7 @@ class ManagerController(Controller):
 
     def move(self, trigger: str, dest: str | None = None) -> None:
         super().move(trigger, dest)
-        if self.current not in QUIET_STATES and trigger == "done":
+        if self.current not in self.model.states_tagged("quiet") and trigger == "done":
             self.verify_all()
 
     # ---- the design as parts

@@ -38,6 +38,10 @@ class Alarm:
     ok: ClassVar[Alarm]
 
     @classmethod
+    def minor(cls, message: str) -> Alarm:
+        return cls(AlarmSeverity.MINOR_ALARM, AlarmStatus.DEVICE_STATUS, message)
+
+    @classmethod
     def major(cls, message: str) -> Alarm:
         return cls(AlarmSeverity.MAJOR_ALARM, AlarmStatus.DEVICE_STATUS, message)
 

@@ -12,7 +12,7 @@ from .check import check_model, resolve_controller
 from .draw import to_dot, to_mermaid
 from .errors import ModelError, Problem
 from .loader import builtin_models_dir, load_model, model_names
-from .model import AttributeRule, Model, StateInfo, Transition
+from .model import AttributeRule, Model, PhaseInfo, StateInfo, Transition
 from .phases import Phase, model_class, phases_of
 
 Stateful = model_class(load_model("stateful"))
@@ -27,6 +27,7 @@ __all__ = [
     "Model",
     "ModelError",
     "Phase",
+    "PhaseInfo",
     "Problem",
     "RunnableDevice",
     "StateInfo",

@@ -15,13 +15,29 @@ Location = tuple[str, int | None]
 
 @dataclass(frozen=True)
 class StateInfo:
-    """A state; ``busy`` states run phases and are left by ``done``."""
+    """A state; ``busy`` states run phases and are left by ``done``.
+
+    ``role`` is what the state means to a controller (``fault``, ``running``
+    ...), unique in a model, so that a model may name its states as it likes;
+    ``tags`` are properties several states share (``quiet``).
+    """
 
     name: str
     busy: bool
     description: str
     line: int | None
     file: str = ""
+    role: str | None = None
+    tags: frozenset[str] = frozenset()
+
+
+@dataclass(frozen=True)
+class PhaseInfo:
+    """A phase's ``role`` (unique in a model) and ``tags`` (such as ``long``)."""
+
+    name: str
+    role: str | None = None
+    tags: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True)
@@ -82,6 +98,7 @@ class Model:
         attributes: dict[str, AttributeRule],
         parent: Model | None = None,
         locations: dict[tuple[str, ...], Location] | None = None,
+        phase_info: dict[str, PhaseInfo] | None = None,
     ) -> None:
         self.name = name
         self.description = description
@@ -95,6 +112,10 @@ class Model:
         self.attributes = attributes
         self.parent = parent
         self.locations = locations or {}
+        #: phase name -> its role and tags (phases without either may be absent)
+        self.phase_info = {
+            name: (phase_info or {}).get(name) or PhaseInfo(name) for name in phases
+        }
 
     def __repr__(self) -> str:
         return f"<Model {self.name} from {self.path}>"
@@ -102,6 +123,42 @@ class Model:
     def where(self, *key: str) -> Location:
         """The ``(file, line)`` where ``key`` was declared, else the model file."""
         return self.locations.get(key, (str(self.path), None))
+
+    # Roles and tags ----------------------------------------------------------
+
+    def state_for(self, role: str) -> str:
+        """The state with ``role``; KeyError naming the model if none has it."""
+        for name, info in self.states.items():
+            if info.role == role:
+                return name
+        raise KeyError(
+            f"model {self.name} ({self.path}) has no state with role {role!r}"
+        )
+
+    def has_state_role(self, role: str) -> bool:
+        return any(info.role == role for info in self.states.values())
+
+    def role_of(self, state: str) -> str | None:
+        """The role of ``state`` (None if it has none)."""
+        return self.states[state].role
+
+    def is_state(self, state: str, role: str) -> bool:
+        """Whether ``state`` is the state with ``role``."""
+        info = self.states.get(state)
+        return info is not None and info.role == role
+
+    def states_tagged(self, tag: str) -> set[str]:
+        return {name for name, info in self.states.items() if tag in info.tags}
+
+    def phase_for(self, role: str) -> str | None:
+        """The phase with ``role``, or None if the model has none."""
+        for name, info in self.phase_info.items():
+            if info.role == role:
+                return name
+        return None
+
+    def phases_tagged(self, tag: str) -> set[str]:
+        return {name for name, info in self.phase_info.items() if tag in info.tags}
 
     # Queries -----------------------------------------------------------------
 

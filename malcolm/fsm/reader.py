@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import Problem
-from .model import AttributeRule, Location, Model, StateInfo, Transition
+from .model import AttributeRule, Location, Model, PhaseInfo, StateInfo, Transition
 from .yamlio import LineDict, LineList
 
 TOP_KEYS = (
@@ -24,7 +24,8 @@ TOP_KEYS = (
     "methods",
     "attributes",
 )
-STATE_KEYS = ("busy", "description")
+STATE_KEYS = ("busy", "description", "role", "tags")
+PHASE_KEYS = ("description", "role", "tags")
 TRANSITION_KEYS = ("trigger", "source", "dest", "guards", "unless", "phases")
 ATTRIBUTE_KEYS = ("allowed", "trigger")
 
@@ -37,6 +38,11 @@ def _is_name(value: Any) -> bool:
 
 def _is_camel(value: Any) -> bool:
     return _is_name(value) and value[0].isupper()
+
+
+def _is_role(value: Any) -> bool:
+    """Roles and tags are lower_snake_case identifiers."""
+    return _is_name(value) and value == value.lower()
 
 
 class ModelReader:
@@ -162,6 +168,13 @@ class ModelReader:
 
         states = self.read_states(data, parent)
         phases, replaced = self.read_phases(data, parent)
+        self.unique_roles(
+            {
+                n: (i.role, self.locations.get(("phase", n), (None, None))[1])
+                for n, i in self.phase_info.items()
+            },
+            "phase",
+        )
         initial = self.read_initial(data, parent, states)
         transitions = self.inherit_transitions(parent, replaced)
         transitions += self.read_transitions(data, states, phases)
@@ -180,6 +193,7 @@ class ModelReader:
             attributes=attributes,
             parent=parent,
             locations=self.locations,
+            phase_info=self.phase_info,
         )
 
     def read_states(self, data: LineDict, parent: Model | None) -> dict[str, StateInfo]:
@@ -208,26 +222,93 @@ class ModelReader:
             description = self.text(spec, "description", f"state {name} description")
             if description is None:
                 description = old.description if old else ""
-            states[name] = StateInfo(name, busy, description, line, self.file)
+            role, tags = self.role_and_tags(spec, f"state {name}", old)
+            states[name] = StateInfo(
+                name, busy, description, line, self.file, role, tags
+            )
             self.at(("state", name), line)
         if not states:
             self.problem(table.line or data.line, "a model needs at least one state")
+        self.unique_roles(
+            {
+                n: (i.role, self.locations.get(("state", n), (None, None))[1])
+                for n, i in states.items()
+            },
+            "state",
+        )
         return states
+
+    def role_and_tags(
+        self, spec: LineDict, what: str, old: Any
+    ) -> tuple[str | None, frozenset[str]]:
+        """A state's or phase's ``role`` and ``tags``; unrestated, the old ones."""
+        role = spec.get("role", old.role if old else None)
+        if role is not None and not _is_role(role):
+            self.problem(
+                spec.line_of("role"),
+                f"{what}: role must be a lower_snake_case name, not {role!r}",
+            )
+            role = None
+        tags = old.tags if old else frozenset()
+        if "tags" in spec:
+            found = self.names(spec["tags"], spec.line_of("tags"), f"{what} tag")
+            bad = [t for t, _ in found if not _is_role(t)]
+            for t in bad:
+                self.problem(
+                    spec.line_of("tags"),
+                    f"{what}: tag {t!r} must be a lower_snake_case name",
+                )
+            tags = frozenset(t for t, _ in found if t not in bad)
+        return role, tags
+
+    def unique_roles(
+        self, roles: dict[str, tuple[str | None, int | None]], what: str
+    ) -> None:
+        seen: dict[str, str] = {}
+        for name, (role, line) in roles.items():
+            if role is None:
+                continue
+            if role in seen:
+                self.problem(
+                    line,
+                    f"{what} {name}: role {role!r} is already the role of"
+                    f" {what} {seen[role]} (a role names one {what})",
+                )
+            else:
+                seen[role] = name
 
     def read_phases(
         self, data: LineDict, parent: Model | None
     ) -> tuple[dict[str, str], dict[str, tuple[str, ...]]]:
         phases = dict(parent.phases) if parent else {}
+        self.phase_info: dict[str, PhaseInfo] = (
+            dict(parent.phase_info) if parent else {}
+        )
         table = self.mapping(data, "phases")
-        for name, description in table.items():
+        for name, value in table.items():
             line = table.line_of(name)
             if not _is_camel(name):
                 self.problem(line, f"phase {name!r} is not a CamelCase name")
                 continue
-            if description is not None and not isinstance(description, str):
-                self.problem(line, f"phase {name}: the value must be a description")
+            old = self.phase_info.get(name)
+            role, tags = (old.role, old.tags) if old else (None, frozenset())
+            if isinstance(value, LineDict):
+                self.check_keys(value, PHASE_KEYS, f"phase {name}")
+                description = self.text(value, "description", f"phase {name}")
+                role, tags = self.role_and_tags(value, f"phase {name}", old)
+            elif value is None or isinstance(value, str):
+                description = value
+            else:
+                self.problem(
+                    line,
+                    f"phase {name}: the value must be a description or a mapping"
+                    " {description, role, tags}",
+                )
                 description = None
+            if description is None and name in phases:
+                description = phases[name]
             phases[name] = description or ""
+            self.phase_info[name] = PhaseInfo(name, role, tags)
             self.at(("phase", name), line)
 
         replaced: dict[str, tuple[str, ...]] = {}
@@ -246,6 +327,7 @@ class ModelReader:
             )
         for old in replaced:
             phases.pop(old, None)
+            self.phase_info.pop(old, None)
             self.locations.pop(("phase", old), None)
         for old, new in replaced.items():
             for phase in new:

@@ -39,7 +39,7 @@ manager agrees with it:
   someone else made a followed or fixed child attribute differ from what the
   design says while the manager was Ready (drift is NOT checked in Disabled
   and Disabling, nor in Fault, Resetting, Saving and Loading: the
-  manager's ``QUIET_STATES``), and health names the attribute; in Ready there
+  states tagged ``quiet`` in the model), and health names the attribute; in Ready there
   is never any drift;
 * every child value is the model's (so the manager wrote exactly what the
   design says and nothing else: reset from Fault or Disabled writes the
