@@ -33,6 +33,7 @@ from malcolm.core import (
 )
 from malcolm.fsm import Model, Transition, load_model
 from malcolm.hooks import Hook, Task, run_phase
+from malcolm.hooks.signature import timeout_problem
 from malcolm.parts.base import Part, PartRegistrar
 
 log = logging.getLogger(__name__)
@@ -94,6 +95,12 @@ class Controller:
         model: Model | str | None = None,
     ) -> None:
         self.mri = mri
+        problems = [timeout_problem("phase_timeout", phase_timeout)]
+        for phase, seconds in dict(phase_timeouts or {}).items():
+            problems.append(timeout_problem(f"phase_timeouts.{phase}", seconds, False))
+        problems = [p for p in problems if p]
+        if problems:
+            raise ValueError(f"{mri}: " + "; ".join(problems))
         if isinstance(model, Model):
             self.model = model
         else:
@@ -170,7 +177,11 @@ class Controller:
                     f"{self.mri}: part {part.name!r} hooks {func.__name__} into"
                     f" phase {phase!r}, which model {self.model.name} does not have"
                 )
-            self.hooks.setdefault(phase, []).append(Hook.make(part.name, phase, func))
+            try:
+                hook = Hook.make(part.name, phase, func)
+            except TypeError as e:
+                raise ValueError(f"{self.mri}: {e}") from None
+            self.hooks.setdefault(phase, []).append(hook)
         if self.process is not None:
             self.tasks[part.name] = Task(self.process, part.name, self._on_progress)
 

@@ -17,6 +17,7 @@ from typing import Any
 
 from malcolm.core import AbortedError, MalcolmError, PhaseTimeoutError
 
+from .signature import hook_problem
 from .task import BlockingTask, Task
 
 _POSITIONAL = (
@@ -37,6 +38,10 @@ class Hook:
 
     @classmethod
     def make(cls, part: str, phase: str, func: Callable[..., Any]) -> Hook:
+        """The hook for ``func``; TypeError if it cannot take ``(task, device)``."""
+        problem = hook_problem(func)
+        if problem is not None:
+            raise TypeError(f"part {part!r}, phase {phase}: {problem}")
         params = inspect.signature(func).parameters.values()
         if any(p.kind == inspect.Parameter.VAR_POSITIONAL for p in params):
             nargs = 2

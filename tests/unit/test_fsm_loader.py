@@ -119,7 +119,11 @@ def test_all_problems_are_reported_at_once(tmp_path: Path) -> None:
             "extends, controller, initial, states, phases, replace_phases, "
             "transitions, methods, attributes)",
         ),
-        (4, "unknown key 'colour' in state Idle (expected one of busy, description, role, tags)"),
+        (
+            4,
+            "unknown key 'colour' in state Idle"
+            " (expected one of busy, description, role, tags)",
+        ),
         (2, "initial 'Nowhere' is not a state"),
         (9, "transition start dest: 'Workin' is not a state"),
         (10, "transition done: phase 'Play' is not declared under phases"),

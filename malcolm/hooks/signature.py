@@ -1,0 +1,59 @@
+"""What a hook function must accept, checked when it is registered.
+
+A hook function is called with up to two positional arguments, ``(task,
+device)``: it may take none, one or both (or ``*args``), and anything else it
+declares must have a default.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from collections.abc import Callable
+from typing import Any
+
+_POSITIONAL = (
+    inspect.Parameter.POSITIONAL_ONLY,
+    inspect.Parameter.POSITIONAL_OR_KEYWORD,
+)
+
+
+def hook_problem(func: Callable[..., Any]) -> str | None:
+    """Why ``func`` cannot be called as ``func(task, device)``, or None."""
+    name = getattr(func, "__qualname__", None) or repr(func)
+    if not callable(func):
+        return f"{name} is not callable"
+    try:
+        params = list(inspect.signature(func).parameters.values())
+    except (TypeError, ValueError):
+        return f"{name}: its signature cannot be read"
+    required = [
+        p.name for p in params if p.kind in _POSITIONAL and p.default is p.empty
+    ]
+    if len(required) > 2:
+        return (
+            f"{name}({', '.join(required)}) needs {len(required)} arguments; a hook"
+            " function is called with (task, device)"
+        )
+    keywords = [
+        p.name
+        for p in params
+        if p.kind == inspect.Parameter.KEYWORD_ONLY and p.default is p.empty
+    ]
+    if keywords:
+        return (
+            f"{name} needs keyword argument(s) {', '.join(keywords)}; a hook"
+            " function is called with (task, device)"
+        )
+    return None
+
+
+def timeout_problem(name: str, value: Any, allow_none: bool = True) -> str | None:
+    """Why ``value`` is not a usable timeout in seconds (positive, finite), or None."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return f"{name} must be a number of seconds, not {value!r}"
+    if not math.isfinite(value) or value <= 0:
+        return f"{name} must be a positive, finite number of seconds, not {value!r}"
+    return None
