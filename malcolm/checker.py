@@ -342,17 +342,8 @@ def _check_design(
 def _check_model(
     path: Path, file: str, search_path: Sequence[str], result: CheckResult
 ) -> None:
-    import yaml
-
     from malcolm.fsm import ModelError, check_model, load_model, resolve_controller
 
-    try:  # characters YAML does not allow at all, which load_model lets through
-        yaml.reader.Reader(path.read_text(encoding="utf-8"))
-    except yaml.reader.ReaderError as e:
-        text = path.read_text(encoding="utf-8")
-        line = text.count("\n", 0, e.position) + 1
-        result.problems.append(Finding(file, line, f"bad YAML: {e.reason}"))
-        return
     try:
         model = load_model(path)
     except ModelError as e:

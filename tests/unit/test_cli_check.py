@@ -349,7 +349,7 @@ def test_model_with_a_character_yaml_forbids(capsys, tmp_path):
     model = write(tmp_path / "m.yaml", "name: M\n# \x1f\nstates: {}\n")
     status, out, _ = run(capsys, model)
     assert status == 1
-    assert out[0].startswith(f"{model}:2: bad YAML:")
+    assert out[0].startswith(f"{model}:2: YAML error:")
 
 
 def test_directories_are_checked_file_by_file(capsys, tmp_path):
