@@ -14,12 +14,16 @@ import sys
 
 def cmd_points(args: argparse.Namespace) -> int:
     """Print every point of the scan described in ``args.file`` as JSON."""
-    from malcolm.scan import scan_points
+    from malcolm.scan.files import GeneratorFileError, points_from_file
 
     try:
-        points = scan_points(args.file)
+        points = points_from_file(args.file)
+    except GeneratorFileError as e:
+        print(e, file=sys.stderr)
+        return 1
+    try:
         text = json.dumps(points.to_json(), allow_nan=False)
-    except ValueError as e:  # GeneratorError, or a non-finite value for JSON
+    except ValueError as e:  # a non-finite value for JSON
         print(f"{args.file}: {e}", file=sys.stderr)
         return 1
     print(text)
