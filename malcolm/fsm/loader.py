@@ -14,10 +14,13 @@ from .reader import ModelReader
 
 
 def builtin_models_dir() -> Path:
-    """The repository's ``models/`` directory."""
+    """The builtin models: ``malcolm/models`` in an installed wheel, else the
+    ``models/`` directory next to the ``malcolm`` package (a checkout)."""
     import malcolm
 
-    return Path(malcolm.__file__).resolve().parents[1] / "models"
+    package = Path(malcolm.__file__).resolve().parent
+    packaged = package / "models"
+    return packaged if packaged.is_dir() else package.parent / "models"
 
 
 def model_names() -> list[str]:
