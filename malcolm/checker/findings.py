@@ -34,8 +34,6 @@ class CheckResult:
     file: str
     kind: str | None  #: one of KINDS, or None if the file could not be read
     problems: list[Finding] = field(default_factory=list)
-    #: deeper checks that were skipped, and why
-    skipped: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:

@@ -43,8 +43,6 @@ def run_check(
         if verbose:
             status = "ok" if result.ok else f"{_count(len(result.problems))}"
             _emit(f"{f}: {status} ({result.kind or 'unreadable'})", err)
-            for why in result.skipped:
-                _emit(f"{f}: skipped {why}", err)
     out.flush()
     n = len(files)
     if total:

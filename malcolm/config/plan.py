@@ -185,8 +185,9 @@ class Planner:
             self.refuse(item, f"{item.kind} names {factory_name(item.factory)}, "
                         "which is not a Controller")  # fmt: skip
             return None
+        controller_class = item.factory
         self.check_arguments(item)
-        for path, message in timeout_problems(item.factory, item.kwargs):
+        for path, message in timeout_problems(controller_class, item.kwargs):
             self.refuse(item, f"{item.kind}: {message}", path)
         return item if item.factory is not None else None
 

@@ -195,6 +195,10 @@ class _Reader:
                 )
             elif resolved in self.done:
                 continue
+            elif included.is_dir():
+                self.problems.add(
+                    section.file, line, f"cannot include a directory: {included}"
+                )
             elif not included.is_file():
                 self.problems.add(section.file, line, f"no such file: {included}")
             else:
