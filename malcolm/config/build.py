@@ -155,7 +155,8 @@ class _Builder:
         owners: dict[str, int] = {}
         for item, part in parts:
             if part is None:
-                self.check_unmade(controller, item)
+                if item.factory is not None and not self.make(item.factory):
+                    self.check_unmade(controller, item)
                 continue
             if part.name in controller.parts:
                 self.problems.add(
@@ -186,7 +187,7 @@ class _Builder:
         """The phases of a part class not made (checking): each must be one
         of the controller's model."""
         factory = item.factory
-        if factory is None or not isinstance(factory, type):
+        if not isinstance(factory, type):
             return
         phases = controller.model.phases
         for phase, func in hook_functions(factory):

@@ -181,11 +181,13 @@ class Planner:
         )
         if item.factory is None:
             return None
-        if inspect.isclass(item.factory) and not issubclass(item.factory, Controller):
-            self.refuse(item, f"{item.kind} names {factory_name(item.factory)}, "
-                        "which is not a Controller")  # fmt: skip
-            return None
         controller_class = item.factory
+        if inspect.isclass(controller_class) and not issubclass(
+            controller_class, Controller
+        ):
+            name = factory_name(controller_class)
+            self.refuse(item, f"{item.kind} names {name}, which is not a Controller")
+            return None
         self.check_arguments(item)
         for path, message in timeout_problems(controller_class, item.kwargs):
             self.refuse(item, f"{item.kind}: {message}", path)
