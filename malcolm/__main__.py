@@ -1,5 +1,5 @@
 """``python -m malcolm``: the same as the ``malcolm`` command."""
 
-from malcolm.cli import main
+from malcolm.entry import main
 
 raise SystemExit(main())

@@ -14,12 +14,16 @@ import sys
 
 def cmd_points(args: argparse.Namespace) -> int:
     """Print every point of the scan described in ``args.file`` as JSON."""
-    from malcolm.scan import scan_points
+    from malcolm.scan.files import GeneratorFileError, points_from_file
 
     try:
-        points = scan_points(args.file)
+        points = points_from_file(args.file)
+    except GeneratorFileError as e:
+        print(e, file=sys.stderr)
+        return 1
+    try:
         text = json.dumps(points.to_json(), allow_nan=False)
-    except ValueError as e:  # GeneratorError, or a non-finite value for JSON
+    except ValueError as e:  # a non-finite value for JSON
         print(f"{args.file}: {e}", file=sys.stderr)
         return 1
     print(text)
@@ -30,13 +34,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """Serve the built-in demo process (simulated hardware)."""
     import asyncio
 
-    from malcolm.demo import serve_demo
+    from malcolm.demo import demo_generator, serve_demo
 
+    generator = demo_generator(duration=args.duration)
     try:
-        return asyncio.run(serve_demo(args.scan))
-    except KeyboardInterrupt:
-        print("malcolm demo: stopped", file=sys.stderr)
-        return 0
+        return asyncio.run(serve_demo(args.scan, generator=generator))
     except Exception as e:  # no traceback reaches a user
         print(f"malcolm demo: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -111,6 +113,21 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _seconds(text: str) -> float:
+    """A positive, finite number of seconds (for argparse)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(
+            f"expected a positive number of seconds, got {text!r}"
+        )
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
     parser = argparse.ArgumentParser(
@@ -141,6 +158,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument(
         "--scan", action="store_true", help="run a demo scan to the end, then exit"
+    )
+    demo.add_argument(
+        "--duration",
+        type=_seconds,
+        default=0.05,
+        metavar="SECONDS",
+        help="seconds per point of the --scan (default 0.05)",
     )
     demo.set_defaults(func=cmd_demo)
 
@@ -207,20 +231,54 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: exit statuses for a run cut short, as a shell reports a signal's death
+INTERRUPTED = 128 + 2  # SIGINT
+BROKEN_PIPE = 128 + 13  # SIGPIPE
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return the exit status."""
+    """Run the command line; return the exit status.
+
+    No traceback reaches a user: Ctrl-C outside the commands' own handling
+    (during start-up, say) prints ``malcolm <command>: interrupted`` and
+    returns 130; output to a pipe closed early (``malcolm graph | head``)
+    ends quietly with 141.
+    """
     for stream in (sys.stdout, sys.stderr):
         # a name the terminal cannot encode is escaped, never a crash
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
-    parser = build_parser()
+    command = "malcolm"
     try:
-        args = parser.parse_args(argv)
-    except SystemExit as e:  # --help, or a usage error already reported
-        return e.code if isinstance(e.code, int) else 2
-    func = getattr(args, "func", None)
-    if func is None:
-        parser.print_usage(sys.stderr)
-        print("malcolm: error: a COMMAND is required", file=sys.stderr)
-        return 2
-    return func(args)
+        parser = build_parser()
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as e:  # --help, or a usage error already reported
+            return e.code if isinstance(e.code, int) else 2
+        func = getattr(args, "func", None)
+        if func is None:
+            parser.print_usage(sys.stderr)
+            print("malcolm: error: a COMMAND is required", file=sys.stderr)
+            return 2
+        command = f"malcolm {args.command}"
+        status = func(args)
+        sys.stdout.flush()  # a closed pipe is found here, not at exit
+        return status
+    except KeyboardInterrupt:
+        print(f"{command}: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    except BrokenPipeError:
+        _discard_stdout()
+        return BROKEN_PIPE
+
+
+def _discard_stdout() -> None:
+    """Point stdout at /dev/null, so that flushing it at exit cannot fail."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # no real file descriptor (captured)
+        pass

@@ -10,12 +10,13 @@ coordinates both detectors and the motors.
 from __future__ import annotations
 
 import asyncio
+import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
-from malcolm.core import Process
+from malcolm.core import MalcolmError, Process
 from malcolm.scan import gda
 
 #: The demo's process file; copy it to start your own.
@@ -52,10 +53,12 @@ async def run_demo_scan(
     out: TextIO | None = None,
     on_progress: Callable[[int, int], None] | None = None,
 ) -> None:
-    """Configure and run SCAN to the end, drawing completedSteps/totalSteps."""
+    """Configure and run SCAN to the end, drawing completedSteps/totalSteps,
+    then a line ``SCAN Finished``. A call that fails raises its error."""
     stream = out or sys.stdout
-    scan = next(m for m in process.mris if m.endswith("SCAN"))
+    scan = _scan_mri(process)
     block = process.get_block(scan)
+    model = process.get_controller(scan).model
 
     def draw(done: int) -> None:
         total = block.totalSteps.value
@@ -69,11 +72,26 @@ async def run_demo_scan(
     )
     sub = process.subscribe([scan, "completedSteps", "value"], draw, delta=False)
     try:
-        while block.state.value != "Finished":
+        while not model.is_state(block.state.value, "finished"):
             await process.post([scan, "run"])
     finally:
         process.unsubscribe(sub)
-        stream.write(f"\n{scan} {block.state.value}\n")
+        stream.write("\n")
+    stream.write(f"{scan} {block.state.value}\n")
+
+
+def _scan_mri(process: Process) -> str:
+    return next(m for m in process.mris if m.endswith("SCAN"))
+
+
+async def abort_demo_scan(process: Process) -> str:
+    """Abort SCAN and wait until the abort has ended; its state then."""
+    scan = _scan_mri(process)
+    try:
+        await process.post([scan, "abort"])
+    except MalcolmError:  # not allowed from here (e.g. Fault): leave it be
+        pass
+    return str(process.get_block(scan).state.value)
 
 
 def describe(process: Process) -> str:
@@ -97,19 +115,93 @@ How to reach the blocks:
 """
 
 
-async def serve_demo(scan: bool, out: TextIO | None = None) -> int:
+async def serve_demo(
+    scan: bool,
+    out: TextIO | None = None,
+    err: TextIO | None = None,
+    signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM),
+    generator: dict[str, Any] | None = None,
+) -> int:
+    """Serve the demo process until one of ``signals``, or run its scan
+    (``generator``, by default :func:`demo_generator`'s grid).
+
+    The exit status: 0 once the scan has Finished (``scan``), or when serving
+    is stopped by a signal; ``128 + signal`` (130 for SIGINT, 143 for
+    SIGTERM) when a signal interrupts the scan, which is aborted first (the
+    state it reached is reported on ``err``). The process is always stopped.
+    """
     # sys.stdout is read per call (not as a default) so redirections apply
     out = out or sys.stdout
-    process = demo_process()
-    await process.start()
-    out.write("malcolm demo: blocks (mri, state, fields)\n" + describe(process) + "\n")
+    err = err or sys.stderr
+    loop = asyncio.get_running_loop()
+    received: list[int] = []
+    stop = asyncio.Event()
+
+    def on_signal(sig: int) -> None:
+        received.append(sig)
+        stop.set()
+
+    for sig in signals:
+        loop.add_signal_handler(sig, on_signal, sig)
     try:
-        if scan:
-            await run_demo_scan(process, out=out)
-            return 0
-        out.write(REACH.format(process_file=DEMO_PROCESS_FILE))
-        out.write("Serving until interrupted (Ctrl-C).\n")
-        await asyncio.Event().wait()
-        return 0
+        process = demo_process()
+        await process.start()
+        try:
+            status = await _demo(process, scan, generator, stop, received, out, err)
+        finally:
+            await process.stop()
     finally:
-        await process.stop()
+        for sig in signals:
+            loop.remove_signal_handler(sig)
+    if received:
+        err.write(f"malcolm demo: {signal.Signals(received[0]).name}: stopped\n")
+    return status
+
+
+async def _demo(
+    process: Process,
+    scan: bool,
+    generator: dict[str, Any] | None,
+    stop: asyncio.Event,
+    received: list[int],
+    out: TextIO,
+    err: TextIO,
+) -> int:
+    if stop.is_set():  # signalled while starting
+        return 128 + received[0] if scan else 0
+    out.write("malcolm demo: blocks (mri, state, fields)\n" + describe(process) + "\n")
+    if scan:
+        return await _scan_until_signalled(process, generator, stop, received, out, err)
+    out.write(REACH.format(process_file=DEMO_PROCESS_FILE))
+    out.write("Serving until interrupted (Ctrl-C or SIGTERM).\n")
+    out.flush()
+    await stop.wait()
+    return 0
+
+
+async def _scan_until_signalled(
+    process: Process,
+    generator: dict[str, Any] | None,
+    stop: asyncio.Event,
+    received: list[int],
+    out: TextIO,
+    err: TextIO,
+) -> int:
+    scan = asyncio.ensure_future(run_demo_scan(process, generator, out=out))
+    stopped = asyncio.ensure_future(stop.wait())
+    await asyncio.wait({scan, stopped}, return_when=asyncio.FIRST_COMPLETED)
+    if not stop.is_set():
+        stopped.cancel()
+        await scan  # raises what the scan raised
+        return 0
+    state = await abort_demo_scan(process)
+    try:
+        await scan
+    except MalcolmError:  # the pending call ends when the scan is aborted
+        pass
+    name = signal.Signals(received[0]).name
+    out.write(f"{_scan_mri(process)} {state}\n")
+    out.flush()
+    err.write(f"malcolm demo: {name}: {_scan_mri(process)} {state}\n")
+    err.flush()
+    return 128 + received[0]

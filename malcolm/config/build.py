@@ -1,39 +1,32 @@
-"""Build running blocks from definitions: controllers, parts and child blocks.
+"""Build running blocks from definitions: make what :mod:`.plan` planned.
 
-:func:`build_block` turns an :class:`~malcolm.config.definitions.ExpandedBlock`
-into a controller with its parts, after building every child block it makes
-(``block.X``) with its own controller:
+:func:`build_block`, :func:`build_process` and :func:`build_definition` plan
+the blocks (:mod:`malcolm.config.plan`: which class makes each controller
+and part, with which keywords; everything checkable without calling a
+factory is checked there), then make them, children and stand-ins first,
+and add them all to the process:
 
-- ``controller.X`` gives the controller class (a StatefulController if the
-  definition has none); its keys are constructor keywords (``description``,
-  ``design``...), the builder passes ``mri`` and ``parts``;
-- every other section (``ca.*``, ``parts.*``...) is one part, made by the
-  factory :func:`~malcolm.config.registry.lookup` gives for its kind, with
-  the section's keys as constructor keywords. A part whose constructor
-  takes a ``name`` that the section does not give is named after the kind
-  (``parts.DetectorPart`` -> ``DetectorPart``, then ``DetectorPart2``...);
-- ``gui.Group`` sections make a :class:`~malcolm.parts.soft.GroupPart`;
-- a ``block.X`` child is controlled from the parent by the part its ``part:``
-  names (``part: PosPluginPart`` -> kind ``parts.PosPluginPart``, called
-  with ``name=<child name>, mri=<child mri>``); without ``part:``, a plain
-  :class:`~malcolm.parts.base.ChildPart`;
-- a ``client.X`` section is the same, for the existing block ``fullname``;
-  its other keys (``readonly: False``) are keywords of the part. If nothing
-  in the process (or being built with it) has that mri, the builder makes
-  a *soft stand-in* block from the client's definition, so the definition
-  still loads: it takes the client's keys that are parameters of that
-  definition, and the fullname for any required String parameter missing.
+- ``controller.X`` gives the controller (a StatefulController if the
+  definition has none), called with the section's keys plus ``mri`` and
+  ``parts``;
+- every other section (``ca.*``, ``parts.*``...) is one part; ``gui.Group``
+  makes a :class:`~malcolm.parts.soft.GroupPart`; a ``block.X`` child or
+  ``client.X`` section is controlled by the part its ``part:`` names (a
+  plain :class:`~malcolm.parts.base.ChildPart` without one).
 
-Parts are added in the order their sections are written. An unknown
-keyword, a missing argument, a failing constructor, a field added twice:
-each is a ConfigError naming the ``file:line`` of its section (or key), and
-all problems are reported together. Nothing is added to the process unless
-the whole build succeeded.
+Parts are added in the order their sections are written. A failing
+constructor, a part whose ``setup`` fails, a field added twice: each is a
+problem at the ``file:line`` of its section, reported with the plan's
+problems, all together. Nothing is added to the process unless the whole
+build succeeded.
+
+:func:`check_block` and :func:`check_process` are the same build as a dry
+run for ``malcolm check``: only malcolm's own classes are made (a user's
+are imported and inspected by the plan, never called), nothing is added.
 """
 
 from __future__ import annotations
 
-import inspect
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -45,43 +38,38 @@ from malcolm.core import Process
 from malcolm.parts.base import ChildPart, Part
 from malcolm.parts.soft import GroupPart
 
-from . import builtin
 from .definitions import (
-    ClientRef,
     ExpandedBlock,
     PathLike,
     expand,
     find_definition,
     load_definition,
 )
-from .errors import ConfigError, Problems, did_you_mean
+from .errors import ConfigError, Problems
+from .inspection import hook_functions
+from .plan import BlockPlan, Item, Planner, part_kind
 from .process_file import expand_process, load_process_file
-from .registry import lookup
-from .yamlsections import Section, split_kind
+from .registry import is_builtin
 
-__all__ = ["build_block", "build_definition", "build_process", "part_kind"]
-
-_KEYWORDS = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
-#: constructor keywords the builder gives a controller itself
-_CONTROLLER_RESERVED = ("mri", "parts")
-
-
-def part_kind(part: str) -> str:
-    """The section kind of a ``part:`` value: ``PosPluginPart`` ->
-    ``parts.PosPluginPart``; ``parts.X`` and import paths are kept."""
-    return part if part.startswith("parts.") else f"parts.{part}"
+__all__ = [
+    "build_block",
+    "build_definition",
+    "build_process",
+    "check_block",
+    "check_process",
+    "part_kind",
+]
 
 
-@dataclass
-class _Item:
-    """One part to make: where it was written and how to make it."""
+def make_everything(factory: Callable[..., Any]) -> bool:
+    """The builder's policy for serving: every factory is called."""
+    return True
 
-    line: int
-    file: str
-    kind: str
-    factory: Callable[..., Any] | None
-    kwargs: dict[str, Any]
-    param_lines: Mapping[str, int]
+
+def make_malcolm_own(factory: Callable[..., Any]) -> bool:
+    """The policy for checking: only malcolm's own classes are made, so that
+    no user code runs beyond importing it."""
+    return factory in (GroupPart, ChildPart) or is_builtin(factory)
 
 
 @dataclass
@@ -92,217 +80,83 @@ class _Built:
 
 
 class _Builder:
+    """Makes the blocks of plans and adds them to a process, all or none."""
+
     def __init__(
         self,
         process: Process,
-        search_path: Sequence[PathLike],
-        planned: set[str],
+        problems: Problems,
+        make: Callable[[Callable[..., Any]], bool] = make_everything,
     ) -> None:
         self.process = process
-        self.search_path = search_path
-        self.problems = Problems()
+        self.problems = problems
+        self.make = make
         self.built: list[_Built] = []
-        #: mris that will exist once the build is added to the process
-        self.made = set(planned) | set(process.mris)
-        #: definitions whose stand-ins are being built (to stop cycles)
-        self.standing: list[str] = []
 
-    # ---- blocks
-    def block(self, expanded: ExpandedBlock, file: str, line: int) -> Controller | None:
-        for child in expanded.children:
-            self.block(child.block, child.file, child.line)
-        controller = self.controller(expanded)
-        items = [self.group_item(s) for s in expanded.groups]
-        names: dict[str, int] = {}
-        for section in expanded.sections:
-            items.append(self.section_item(section, names))
-        for child in expanded.children:
-            items.append(
-                self.child_item(
-                    child.part, child.name, child.block.mri, {}, child.file, child.line
-                )
-            )
-        for client in expanded.clients:
-            if client.fullname not in self.made:
-                self.standin(client)
-            items.append(
-                self.child_item(
-                    client.part,
-                    client.name,
-                    client.fullname,
-                    client.params,
-                    client.file,
-                    client.line,
-                )
-            )
-        items.sort(key=lambda item: item.line)
-        parts = [(item, self.make_part(item)) for item in items]
+    def block(self, plan: BlockPlan) -> Controller | None:
+        for before in plan.before:
+            self.block(before)
+        controller = self.controller(plan.controller)
+        parts = [(item, self.part(item)) for item in plan.parts]
         if controller is None:
             return None
         self.add_parts(controller, parts)
-        self.built.append(_Built(controller, file, line))
-        return controller
-
-    def controller(self, expanded: ExpandedBlock) -> Controller | None:
-        section = expanded.controller
-        if section is None:
-            factory: Callable[..., Any] = builtin.DEFAULT_CONTROLLER
-            kind, file, line, params, lines = (
-                "controller.StatefulController",
-                str(expanded.path),
-                1,
-                {},
-                {},
-            )
-        else:
-            kind, file, line = section.kind, section.file, section.line
-            params, lines = dict(section.params), section.param_lines
-            try:
-                factory = lookup(kind, file, line)
-            except ConfigError as error:
-                self.problems.problems.extend(error.problems)
-                return None
-            for key in _CONTROLLER_RESERVED:
-                if key in params:
-                    self.problems.add(
-                        file,
-                        lines.get(key, line),
-                        f"{kind}: '{key}' is given by the builder, not the definition",
-                    )
-                    return None
-        item = _Item(line, file, kind, factory, {"mri": expanded.mri, **params}, lines)
-        controller = self.call(item, {**item.kwargs, "parts": ()})
-        if controller is not None and not isinstance(controller, Controller):
-            self.problems.add(
-                file,
-                line,
-                f"{kind} makes {type(controller).__name__}, not a Controller",
-            )
-            return None
-        return controller
-
-    def standin(self, client: ClientRef) -> None:
-        """Make a soft block of the client's definition at its fullname."""
-        if client.definition in self.standing:
-            self.problems.add(
-                client.file,
-                client.line,
-                f"cannot make a stand-in for '{client.fullname}': "
-                f"{client.definition} needs stand-ins of itself "
-                f"({' -> '.join([*self.standing, client.definition])})",
-            )
-            return
-        self.standing.append(client.definition)
-        try:
-            self._standin(client)
-        finally:
-            self.standing.pop()
-
-    def _standin(self, client: ClientRef) -> None:
-        try:
-            path = find_definition(
-                client.definition, self.search_path, file=client.file, line=client.line
-            )
-            definition = load_definition(path, name=client.definition)
-            declared = {p.name: p for p in definition.params}
-            values = {k: v for k, v in client.params.items() if k in declared}
-            for p in definition.params:
-                if p.required and p.name not in values and p.type == "String":
-                    values[p.name] = client.fullname
-            expanded = expand(
-                definition,
-                values,
-                self.search_path,
-                mri=client.fullname,
-                file=client.file,
-                line=client.line,
-            )
-        except ConfigError as error:
-            self.problems.problems.extend(error.problems)
-            return
-        self.made.update(b.mri for b in expanded.walk())
-        controller = self.block(expanded, client.file, client.line)
-        if controller is not None:
+        if plan.standin is not None:
+            client = plan.standin
             meta = controller.block.meta
             meta.description = meta.description or (
                 f"Soft stand-in for {client.definition} (client '{client.name}' "
                 f"at {client.file}:{client.line})"
             )
             meta.tags = (*meta.tags, "standin")
+        self.built.append(_Built(controller, plan.file, plan.line))
+        return controller
 
-    # ---- parts
-    def group_item(self, section: Section) -> _Item:
-        return _Item(
-            section.line,
-            section.file,
-            section.kind,
-            GroupPart,
-            dict(section.params),
-            section.param_lines,
-        )
-
-    def section_item(self, section: Section, names: dict[str, int]) -> _Item:
-        kwargs = dict(section.params)
-        item = _Item(
-            section.line, section.file, section.kind, None, kwargs, section.param_lines
-        )
-        try:
-            item.factory = lookup(section.kind, section.file, section.line)
-        except ConfigError as error:
-            self.problems.problems.extend(error.problems)
-            return item
-        if "name" not in kwargs and _needs(item.factory, "name"):
-            base = split_kind(section.kind)[1].rpartition(":")[2].rpartition(".")[2]
-            names[base] = names.get(base, 0) + 1
-            kwargs["name"] = base if names[base] == 1 else f"{base}{names[base]}"
-        return item
-
-    def child_item(
-        self,
-        part: str | None,
-        name: str,
-        mri: str,
-        params: Mapping[str, Any],
-        file: str,
-        line: int,
-    ) -> _Item:
-        kind = "ChildPart" if part is None else part_kind(part)
-        item = _Item(line, file, kind, ChildPart, {"name": name, "mri": mri}, {})
-        if part is not None:
-            try:
-                item.factory = lookup(kind, file, line)
-            except ConfigError as error:
-                self.problems.problems.extend(error.problems)
-                item.factory = None
-        for key, value in params.items():
-            if key in ("name", "mri"):
-                self.problems.add(file, line, f"'{key}' is given by the builder")
-                item.factory = None
-            item.kwargs[key] = value
-        return item
-
-    def make_part(self, item: _Item) -> Part | None:
-        if item.factory is None:
+    def controller(self, item: Item | None) -> Controller | None:
+        if item is None or item.factory is None or not self.make(item.factory):
             return None
-        part = self.call(item, item.kwargs)
-        if part is not None and not isinstance(part, Part):
-            note = ""
-            if isinstance(part, tuple(builtin.DESIGN_KINDS.values())):
-                note = " (a saved-design record: read it with load_design)"
+        controller = self.call(item)
+        if controller is not None and not isinstance(controller, Controller):
             self.problems.add(
                 item.file,
                 item.line,
-                f"{item.kind} makes {type(part).__name__}, not a Part{note}",
+                f"{item.kind} makes {type(controller).__name__}, not a Controller",
+            )
+            return None
+        return controller
+
+    def part(self, item: Item) -> Part | None:
+        if item.factory is None or not self.make(item.factory):
+            return None
+        part = self.call(item)
+        if part is not None and not isinstance(part, Part):
+            self.problems.add(
+                item.file,
+                item.line,
+                f"{item.kind} makes {type(part).__name__}, not a Part",
             )
             return None
         return part
 
+    def call(self, item: Item) -> Any:
+        """``factory(**kwargs)``; a problem at the section's line, else None."""
+        assert item.factory is not None
+        try:
+            return item.factory(**item.kwargs)
+        except ConfigError as error:
+            self.problems.problems.extend(error.problems)
+        except Exception as error:
+            self.problems.add(item.file, item.line, f"{item.kind}: {_why(error)}")
+        return None
+
     def add_parts(
-        self, controller: Controller, parts: list[tuple[_Item, Part | None]]
+        self, controller: Controller, parts: list[tuple[Item, Part | None]]
     ) -> None:
         owners: dict[str, int] = {}
         for item, part in parts:
             if part is None:
+                if item.factory is not None and not self.make(item.factory):
+                    self.check_unmade(controller, item)
                 continue
             if part.name in controller.parts:
                 self.problems.add(
@@ -329,60 +183,25 @@ class _Builder:
                     )
         controller._update_writeable()
 
-    def call(self, item: _Item, kwargs: dict[str, Any]) -> Any:
-        """``factory(**kwargs)``; problems at the section's lines, else None."""
+    def check_unmade(self, controller: Controller, item: Item) -> None:
+        """The phases of a part class not made (checking): each must be one
+        of the controller's model."""
         factory = item.factory
-        assert factory is not None
-        try:
-            signature = inspect.signature(factory)
-        except (TypeError, ValueError):
-            signature = None
-        if signature is not None:
-            params = signature.parameters
-            takes = [n for n, p in params.items() if p.kind in _KEYWORDS]
-            var_kw = any(p.kind is p.VAR_KEYWORD for p in params.values())
-            ok = True
-            for key in kwargs:
-                if key not in takes and not var_kw:
-                    ok = False
-                    self.problems.add(
-                        item.file,
-                        item.param_lines.get(key, item.line),
-                        f"{item.kind}: unknown parameter '{key}' "
-                        f"({_name(factory)} takes {', '.join(takes) or 'nothing'})"
-                        + did_you_mean(key, takes),
-                    )
-            for name in takes:
-                param = params[name]
-                if param.default is param.empty and name not in kwargs:
-                    ok = False
-                    self.problems.add(
-                        item.file,
-                        item.line,
-                        f"{item.kind}: missing required parameter '{name}'",
-                    )
-            for key, value in kwargs.items():
-                want = _annotation(factory, key)
-                if want is not None and not _fits(value, want):
-                    ok = False
-                    self.problems.add(
-                        item.file,
-                        item.param_lines.get(key, item.line),
-                        f"{item.kind}: '{key}' must be {_say(want)}, not {value!r}",
-                    )
-            if not ok:
-                return None
-        try:
-            return factory(**kwargs)
-        except ConfigError as error:
-            self.problems.problems.extend(error.problems)
-        except Exception as error:
-            self.problems.add(item.file, item.line, f"{item.kind}: {_why(error)}")
-        return None
+        if not isinstance(factory, type):
+            return
+        phases = controller.model.phases
+        for phase, func in hook_functions(factory):
+            if phase not in phases:
+                self.problems.add(
+                    item.file,
+                    item.line,
+                    f"{item.kind}: {controller.mri}: part "
+                    f"{item.kwargs.get('name')!r} hooks {func.__name__} into phase"
+                    f" {phase!r}, which model {controller.model.name} does not have",
+                )
 
-    # ---- adding
-    def commit(self) -> None:
-        """Add every controller built, or raise every problem and add none."""
+    def commit(self, add: bool = True) -> None:
+        """Add every controller built (if ``add``), or raise every problem."""
         seen: dict[str, _Built] = {}
         for built in self.built:
             mri = built.controller.mri
@@ -402,24 +221,9 @@ class _Builder:
             seen[mri] = built
         self.problems.problems.sort(key=lambda p: (p.file, p.line))
         self.problems.raise_if_any()
-        for built in self.built:
-            self.process.add_controller(built.controller)
-
-
-def _needs(factory: Callable[..., Any], name: str) -> bool:
-    """True if ``factory`` has a keyword ``name`` without a default."""
-    try:
-        params = inspect.signature(factory).parameters
-    except (TypeError, ValueError):
-        return False
-    param = params.get(name)
-    return (
-        param is not None and param.kind in _KEYWORDS and param.default is param.empty
-    )
-
-
-def _name(factory: Callable[..., Any]) -> str:
-    return getattr(factory, "__qualname__", None) or repr(factory)
+        if add:
+            for built in self.built:
+                self.process.add_controller(built.controller)
 
 
 def _why(error: BaseException) -> str:
@@ -431,6 +235,32 @@ def _why(error: BaseException) -> str:
 def _owner(owners: dict[str, int], name: str, line: int) -> str:
     first = owners.get(name)
     return f" (made at line {first})" if first is not None and first != line else ""
+
+
+def _build(
+    process: Process,
+    plans: Sequence[BlockPlan],
+    problems: Problems,
+    make: Callable[[Callable[..., Any]], bool] = make_everything,
+    add: bool = True,
+) -> list[Controller | None]:
+    builder = _Builder(process, problems, make)
+    tops = [builder.block(plan) for plan in plans]
+    builder.commit(add)
+    return tops
+
+
+def _plan_block(
+    process: Process,
+    expanded: ExpandedBlock,
+    search_path: Sequence[PathLike],
+    file: str | None,
+    line: int,
+) -> tuple[BlockPlan, Problems]:
+    problems = Problems()
+    made = set(process.mris) | {b.mri for b in expanded.walk()}
+    planner = Planner(search_path, made, problems)
+    return planner.block(expanded, file or str(expanded.path), line), problems
 
 
 def build_block(
@@ -447,11 +277,47 @@ def build_block(
     block was asked for, for messages. Raises ConfigError (and adds
     nothing) if anything is wrong.
     """
-    builder = _Builder(process, search_path, {b.mri for b in expanded.walk()})
-    controller = builder.block(expanded, file or str(expanded.path), line)
-    builder.commit()
+    plan, problems = _plan_block(process, expanded, search_path, file, line)
+    (controller,) = _build(process, [plan], problems)
     assert controller is not None
     return controller
+
+
+def check_block(
+    expanded: ExpandedBlock,
+    search_path: Sequence[PathLike] = (),
+    *,
+    file: str | None = None,
+    line: int = 1,
+) -> None:
+    """Raise ConfigError with every problem building ``expanded`` would meet,
+    running no code but malcolm's own.
+
+    Every class is imported and inspected (keywords, annotations, hook
+    functions, timeouts); only malcolm's own controllers and parts are made,
+    into a throwaway process, and never started.
+    """
+    process = Process("check")
+    plan, problems = _plan_block(process, expanded, search_path, file, line)
+    _build(process, [plan], problems, make_malcolm_own, add=False)
+
+
+def _plan_process(
+    process: Process,
+    path: PathLike,
+    search_path: Sequence[PathLike],
+    defines: Mapping[str, Any] | None,
+) -> tuple[list[BlockPlan], Problems]:
+    spec = load_process_file(path, search_path, defines)
+    blocks = expand_process(spec, search_path)
+    problems = Problems()
+    made = set(process.mris) | {b.mri for block in blocks for b in block.walk()}
+    planner = Planner(search_path, made, problems)
+    plans = [
+        planner.block(block, block_spec.file, block_spec.line)
+        for block_spec, block in zip(spec.blocks, blocks)
+    ]
+    return plans, problems
 
 
 def build_process(
@@ -465,16 +331,19 @@ def build_process(
 
     ``defines`` replaces the values of the file's ``define.<Type>`` sections.
     """
-    spec = load_process_file(path, search_path, defines)
-    blocks = expand_process(spec, search_path)
     if process is None:
         process = Process(Path(path).stem)
-    planned = {b.mri for block in blocks for b in block.walk()}
-    builder = _Builder(process, search_path, planned)
-    for block_spec, block in zip(spec.blocks, blocks):
-        builder.block(block, block_spec.file, block_spec.line)
-    builder.commit()
+    plans, problems = _plan_process(process, path, search_path, defines)
+    _build(process, plans, problems)
     return process
+
+
+def check_process(path: PathLike, search_path: Sequence[PathLike] = ()) -> None:
+    """Raise ConfigError with every problem :func:`build_process` would meet,
+    running no code but malcolm's own (see :func:`check_block`)."""
+    process = Process("check")
+    plans, problems = _plan_process(process, path, search_path, None)
+    _build(process, plans, problems, make_malcolm_own, add=False)
 
 
 def build_definition(
@@ -499,44 +368,3 @@ def build_definition(
         process = Process(expanded.mri)
     build_block(process, expanded, search_path)
     return process
-
-
-_SIMPLE = {"str": (str,), "float": (int, float), "int": (int,), "bool": (bool,)}
-
-
-def _annotation(factory: Any, key: str) -> str | None:
-    """The simple type (str/float/int/bool, maybe "| None") a keyword declares."""
-    target = factory.__init__ if inspect.isclass(factory) else factory
-    raw = getattr(target, "__annotations__", {}).get(key)
-    if not isinstance(raw, str):
-        raw = getattr(raw, "__name__", None) if raw is not None else None
-    if raw is None:
-        return None
-    parts = {p.strip() for p in raw.split("|")}
-    if parts - {"None"} and parts - {"None"} <= set(_SIMPLE) | {"Path"}:
-        return " or ".join(sorted(parts))
-    return None
-
-
-def _fits(value: Any, want: str) -> bool:
-    parts = set(want.split(" or "))
-    if value is None:
-        return "None" in parts
-    if isinstance(value, bool):
-        return "bool" in parts
-    for name in parts:
-        if name == "Path" and isinstance(value, str):
-            return True
-        if name in _SIMPLE and isinstance(value, _SIMPLE[name]):
-            return True
-    return False
-
-
-_WORDS = {"str": "text", "float": "a number", "int": "an integer",
-          "bool": "a boolean", "Path": "a path"}  # fmt: skip
-
-
-def _say(want: str) -> str:
-    parts = want.split(" or ")
-    words = sorted({_WORDS[p] for p in parts if p in _WORDS})
-    return " or ".join(words) + (" (or nothing)" if "None" in parts else "")

@@ -25,6 +25,7 @@ Sections are read in order:
 
 from __future__ import annotations
 
+import difflib
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -194,6 +195,10 @@ class _Reader:
                 )
             elif resolved in self.done:
                 continue
+            elif included.is_dir():
+                self.problems.add(
+                    section.file, line, f"cannot include a directory: {included}"
+                )
             elif not included.is_file():
                 self.problems.add(section.file, line, f"no such file: {included}")
             else:
@@ -249,8 +254,13 @@ class _Reader:
         values = dict(section.params)
         mri = values.pop("mri", None)
         if not isinstance(mri, str) or not mri.strip():
+            given = "mri" in section.params
+            keys = [] if given else [str(k) for k in values]
+            typo = difflib.get_close_matches("mri", keys, n=1)
+            hint = f" ('{typo[0]}' may be a typo of it)" if typo else ""
+            line_of = section.line_of((typo[0],) if typo else ("mri",))
             raise ConfigError.at(
-                file, section.line_of(("mri",)), f"{section.kind} needs an 'mri' (text)"
+                file, line_of, f"{section.kind} needs an 'mri' (text){hint}"
             )
         if not MRI.match(mri) or ".." in mri:
             raise ConfigError.at(

@@ -12,6 +12,12 @@
    ``mypkg.parts`` and takes ``MyPart``; ``parts.mypkg.parts:MyPart`` says
    where the module ends.
 
+What an entry point or an import path names must be a class: a
+:class:`~malcolm.controllers.base.Controller` subclass for ``controller.*``,
+a :class:`~malcolm.parts.base.Part` subclass for every other namespace.
+``parts.os.system`` is refused before anything is called; only importing a
+module runs its code. Kinds registered in Python may be any factory.
+
 The namespaces in :data:`LOADER_NAMESPACES` have a fixed meaning that the
 definition loader handles itself; the registry serves every other section
 (``ca.*``, ``parts.*``, ``fixed.*``...) and the classes named by
@@ -69,6 +75,11 @@ def register_builtin(kind: str, factory: Callable[..., Any]) -> None:
     _builtins[kind] = factory
 
 
+def is_builtin(factory: Callable[..., Any]) -> bool:
+    """True if ``factory`` is one of malcolm's own registered kinds."""
+    return any(factory is builtin for builtin in _builtins.values())
+
+
 def unregister(kind: str) -> None:
     """Forget an explicitly registered kind (for tests and reloading)."""
     _registry.pop(kind, None)
@@ -84,7 +95,13 @@ def known_kinds() -> list[str]:
 
 
 def lookup(kind: str, file: str = "<unknown>", line: int = 1) -> Callable[..., Any]:
-    """The factory for ``kind``; ConfigError at ``file:line`` if none."""
+    """The factory for ``kind``; ConfigError at ``file:line`` if none.
+
+    A kind found by entry point or import path must name a class: a
+    Controller subclass for ``controller.*``, a Part subclass for any other
+    namespace. Anything else (a function such as ``os.system``, a class of
+    another kind) is refused, and never called.
+    """
     if kind in _registry:
         return _registry[kind]
     if kind in _builtins:
@@ -92,7 +109,7 @@ def lookup(kind: str, file: str = "<unknown>", line: int = 1) -> Callable[..., A
     for ep in _entry_points():
         if ep.name == kind:
             try:
-                return ep.load()
+                found = ep.load()
             except Exception as error:
                 raise ConfigError.at(
                     file,
@@ -100,10 +117,42 @@ def lookup(kind: str, file: str = "<unknown>", line: int = 1) -> Callable[..., A
                     f"section type '{kind}': cannot load entry point "
                     f"'{ep.value}': {type(error).__name__}: {error}",
                 ) from None
+            origin = f" (entry point '{ep.value}')"
+            return _required_class(kind, found, origin, file, line)
     factory = _import_path(kind, file, line)
     if factory is not None:
         return factory
     raise ConfigError.at(file, line, f"unknown section type '{kind}'" + _suggest(kind))
+
+
+def _required_class(
+    kind: str, found: Any, origin: str, file: str, line: int
+) -> Callable[..., Any]:
+    """``found`` if it is the class ``kind``'s namespace needs, else ConfigError."""
+    from malcolm.controllers.base import Controller
+    from malcolm.parts.base import Part
+
+    base = Controller if split_kind(kind)[0] == "controller" else Part
+    if isinstance(found, type) and issubclass(found, base):
+        return found
+    if isinstance(found, type):
+        what = f"the class {found.__module__}.{found.__qualname__}"
+    else:
+        what = _describe(found)
+    raise ConfigError.at(
+        file,
+        line,
+        f"section type '{kind}'{origin} names {what}, not a {base.__name__} class "
+        f"(a section names a registered section type or a {base.__name__} subclass)",
+    )
+
+
+def _describe(found: Any) -> str:
+    if callable(found):
+        name = getattr(found, "__qualname__", None) or type(found).__name__
+        module = getattr(found, "__module__", None)
+        return f"the function {module}.{name}" if module else f"the function {name}"
+    return f"a value of type {type(found).__name__}"
 
 
 def _suggest(kind: str) -> str:
@@ -172,11 +221,7 @@ def _import_path(kind: str, file: str, line: int) -> Callable[..., Any] | None:
                 f"unknown section type '{kind}': module '{module_name}' "
                 f"has no attribute '{attr_path}'",
             ) from None
-        if not callable(obj):
-            raise ConfigError.at(
-                file, line, f"section type '{kind}' names {obj!r}, not a class"
-            )
-        return obj
+        return _required_class(kind, obj, "", file, line)
     return None
 
 

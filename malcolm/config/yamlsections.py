@@ -17,8 +17,9 @@ the text ``{name}...``:
   (after ``key:`` or ``-``) is quoted, line by line, and the document is
   parsed again. Line numbers are unchanged by this.
 
-Scalars follow YAML 1.1 as PyYAML reads them (``visible: Yes`` is True).
-Anchors and aliases are not part of the language.
+The document is read by :mod:`malcolm.yamlio`, the reader every loader
+uses: scalars follow YAML 1.1 as PyYAML reads them (``visible: Yes`` is
+True); anchors and aliases are not part of the language.
 """
 
 from __future__ import annotations
@@ -27,11 +28,11 @@ import os
 import re
 from collections.abc import Collection
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-import yaml
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+
+from malcolm import yamlio
 
 from .errors import ConfigError, Problems
 
@@ -41,11 +42,6 @@ _IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
 _COMPONENT = r"[A-Za-z0-9_][A-Za-z0-9_-]*"
 #: ``namespace.Name.Dotted`` with an optional ``:attribute`` (import paths).
 KIND_RE = re.compile(rf"{_IDENT}(?:\.{_COMPONENT})*(?::{_IDENT}(?:\.{_IDENT})*)?")
-
-_MAP_TAG = "tag:yaml.org,2002:map"
-_SEQ_TAG = "tag:yaml.org,2002:seq"
-_NULL_TAG = "tag:yaml.org,2002:null"
-_STR_TAG = "tag:yaml.org,2002:str"
 
 
 @dataclass(frozen=True)
@@ -85,14 +81,11 @@ def load_sections(
     path: str | os.PathLike[str], *, value_kinds: Collection[str] = ()
 ) -> list[Section]:
     """Read a file and parse it with :func:`parse_sections`."""
-    file = str(path)
     try:
-        text = Path(path).read_bytes().decode("utf-8")
-    except OSError as error:
-        raise ConfigError.at(file, 1, f"cannot read file: {error.strerror}") from None
-    except UnicodeDecodeError as error:
-        raise ConfigError.at(file, 1, f"file is not UTF-8: {error.reason}") from None
-    return parse_sections(text, file, value_kinds=value_kinds)
+        text = yamlio.read_text(path)
+    except yamlio.YamlError as error:
+        raise _config_error(error) from None
+    return parse_sections(text, str(path), value_kinds=value_kinds)
 
 
 def parse_sections(
@@ -105,11 +98,14 @@ def parse_sections(
     any value and is stored as ``params["value"]``.
     Raises :class:`ConfigError` listing every problem found.
     """
-    root, composed = _compose(text, file)
+    try:
+        root, composed = yamlio.compose(text, file, fallback=quote_references)
+    except yamlio.YamlError as error:
+        raise _config_error(error) from None
     if root is None:
         return []
     problems = Problems()
-    if not isinstance(root, MappingNode) or root.tag != _MAP_TAG:
+    if not isinstance(root, MappingNode) or root.tag != yamlio.MAP_TAG:
         problems.add(file, _line(root), "a definition must be a mapping of sections")
         problems.raise_if_any()
     _unbrace(root, composed)
@@ -124,51 +120,12 @@ def parse_sections(
     return sections
 
 
-def _line(node: Node) -> int:
-    return node.start_mark.line + 1
+def _config_error(error: yamlio.YamlError) -> ConfigError:
+    problem = error.problem
+    return ConfigError.at(problem.file, problem.line or 1, problem.message)
 
 
-class _Loader(yaml.SafeLoader):
-    """A SafeLoader that refuses aliases (``*name``)."""
-
-    def compose_node(self, parent: Node | None, index: Any) -> Node | None:
-        if self.check_event(yaml.AliasEvent):
-            mark = self.peek_event().start_mark
-            raise yaml.composer.ComposerError(
-                None, None, "aliases (*name) are not supported", mark
-            )
-        return super().compose_node(parent, index)
-
-
-def _compose_text(text: str) -> Node | None:
-    loader = _Loader(text)
-    try:
-        return loader.get_single_node()
-    finally:
-        loader.dispose()
-
-
-def _compose(text: str, file: str) -> tuple[Node | None, str]:
-    """Compose ``text``, quoting unquoted ``{name}...`` values if needed."""
-    try:
-        return _compose_text(text), text
-    except (yaml.YAMLError, RecursionError):
-        pass
-    quoted = quote_references(text)
-    try:
-        return _compose_text(quoted), quoted
-    except yaml.MarkedYAMLError as error:
-        mark = error.problem_mark or error.context_mark
-        line = mark.line + 1 if mark else 1
-        message = " ".join(m for m in (error.context, error.problem) if m)
-        raise ConfigError.at(file, line, f"YAML error: {message}") from None
-    except yaml.reader.ReaderError as error:
-        line = text.count("\n", 0, error.position) + 1
-        raise ConfigError.at(file, line, f"YAML error: {error.reason}") from None
-    except yaml.YAMLError as error:
-        raise ConfigError.at(file, 1, f"YAML error: {error}") from None
-    except RecursionError:
-        raise ConfigError.at(file, 1, "document is nested too deeply") from None
+_line = yamlio.line_of
 
 
 # ``key: {name}...`` or ``- {name}...``: the value is group "value".
@@ -234,21 +191,24 @@ def _unbraced(node: Node, text: str) -> Node:
         and _BRACED.fullmatch(text[node.start_mark.index : node.end_mark.index])
     ):
         key, value = node.value[0]
-        if isinstance(key, ScalarNode) and value.tag == _NULL_TAG:
+        if isinstance(key, ScalarNode) and value.tag == yamlio.NULL_TAG:
             return ScalarNode(
-                _STR_TAG, "{" + key.value + "}", node.start_mark, node.end_mark, "'"
+                yamlio.STR_TAG,
+                "{" + key.value + "}",
+                node.start_mark,
+                node.end_mark,
+                "'",
             )
     _unbrace(node, text)
     return node
 
 
 class _Reader:
-    """Turns composed nodes into sections and plain Python values."""
+    """Turns the composed top-level pairs into sections of plain values."""
 
     def __init__(self, file: str, problems: Problems) -> None:
         self.file = file
         self.problems = problems
-        self.constructor = yaml.SafeLoader("")
 
     def section(
         self, key: Node, body: Node, value_kinds: Collection[str]
@@ -268,7 +228,7 @@ class _Reader:
         params: dict[str, Any] = {}
         param_lines: dict[str, int] = {}
         value_lines: dict[ValuePath, int] = {}
-        if isinstance(body, MappingNode) and body.tag == _MAP_TAG:
+        if isinstance(body, MappingNode) and body.tag == yamlio.MAP_TAG:
             for pkey, pvalue in body.value:
                 if not isinstance(pkey, ScalarNode):
                     self.problems.add(
@@ -285,11 +245,11 @@ class _Reader:
                     )
                     continue
                 param_lines[pname] = _line(pkey)
-                params[pname] = self.value(pvalue, (pname,), value_lines)
+                params[pname] = self.value(pvalue, pname, value_lines)
         elif kind in value_kinds:
-            params["value"] = self.value(body, ("value",), value_lines)
+            params["value"] = self.value(body, "value", value_lines)
             param_lines["value"] = _line(body)
-        elif not (isinstance(body, ScalarNode) and body.tag == _NULL_TAG):
+        elif not (isinstance(body, ScalarNode) and body.tag == yamlio.NULL_TAG):
             self.problems.add(
                 self.file,
                 _line(body),
@@ -306,40 +266,11 @@ class _Reader:
             value_lines,
         )
 
-    def value(self, node: Node, path: ValuePath, lines: dict[ValuePath, int]) -> Any:
-        lines[path] = _line(node)
-        if isinstance(node, ScalarNode):
-            try:
-                return self.constructor.construct_object(node, deep=True)
-            except Exception as error:  # a bad scalar raises many kinds
-                message = getattr(error, "problem", None) or str(error)
-                self.problems.add(self.file, _line(node), f"bad value: {message}")
-                return None
-        if isinstance(node, SequenceNode) and node.tag == _SEQ_TAG:
-            return [
-                self.value(item, (*path, i), lines) for i, item in enumerate(node.value)
-            ]
-        if isinstance(node, MappingNode) and node.tag == _MAP_TAG:
-            result: dict[Any, Any] = {}
-            key_lines: dict[Any, int] = {}
-            for key_node, value_node in node.value:
-                key = self.value(key_node, (*path, "<key>"), {})
-                try:
-                    duplicate = key in result
-                except TypeError:
-                    self.problems.add(
-                        self.file, _line(key_node), "mapping key must be a plain value"
-                    )
-                    continue
-                if duplicate:
-                    self.problems.add(
-                        self.file,
-                        _line(key_node),
-                        f"duplicate key '{key}' (first given at line {key_lines[key]})",
-                    )
-                    continue
-                key_lines[key] = _line(key_node)
-                result[key] = self.value(value_node, (*path, key), lines)
-            return result
-        self.problems.add(self.file, _line(node), f"unsupported YAML tag {node.tag}")
-        return None
+    def value(self, node: Node, name: str, lines: dict[ValuePath, int]) -> Any:
+        """The plain value of parameter ``name``; its lines go into ``lines``."""
+        value, problems = yamlio.construct(node, self.file)
+        for problem in problems:
+            self.problems.add(problem.file, problem.line or 1, problem.message)
+        lines[(name,)] = _line(node)
+        lines.update(yamlio.value_lines(value, (name,)))
+        return yamlio.plain(value)

@@ -5,17 +5,22 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from malcolm import yamlio
+from malcolm.yamlio import LineDict
+
 from .errors import ModelError, Problem
 from .model import Model
 from .reader import ModelReader
-from .yamlio import LineDict, read_yaml
 
 
 def builtin_models_dir() -> Path:
-    """The repository's ``models/`` directory."""
+    """The builtin models: ``malcolm/models`` in an installed wheel, else the
+    ``models/`` directory next to the ``malcolm`` package (a checkout)."""
     import malcolm
 
-    return Path(malcolm.__file__).resolve().parents[1] / "models"
+    package = Path(malcolm.__file__).resolve().parent
+    packaged = package / "models"
+    return packaged if packaged.is_dir() else package.parent / "models"
 
 
 def model_names() -> list[str]:
@@ -53,8 +58,17 @@ def _find(stem: str, dirs: Sequence[Path]) -> Path | None:
     return None
 
 
+def _read(path: Path) -> tuple[object, list[Problem]]:
+    """The document at ``path`` and its problems, read by :mod:`malcolm.yamlio`."""
+    try:
+        data, found = yamlio.load(path)
+    except yamlio.YamlError as e:
+        found, data = [e.problem], None
+    return data, [Problem(p.file, p.line, p.message) for p in found]
+
+
 def _load(path: Path, search: tuple[Path, ...], chain: tuple[Path, ...]) -> Model:
-    data, problems = read_yaml(path)
+    data, problems = _read(path)
     if data is None:
         raise ModelError(problems or [Problem(str(path), 1, "the model file is empty")])
     reader = ModelReader(path, problems)

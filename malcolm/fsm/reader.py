@@ -7,9 +7,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from malcolm.yamlio import LineDict, LineList
+
 from .errors import Problem
 from .model import AttributeRule, Location, Model, PhaseInfo, StateInfo, Transition
-from .yamlio import LineDict, LineList
 
 TOP_KEYS = (
     "name",

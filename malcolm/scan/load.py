@@ -1,15 +1,12 @@
-"""`scan_points`: one entry point for every way of describing a scan."""
+"""`scan_points`: one entry point for every way of describing a scan as data."""
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from scanspec.specs import Spec
 
 from .compound import compound_points
@@ -17,33 +14,6 @@ from .errors import GeneratorError
 from .fields import describe
 from .points import ScanPoints
 from .spec import deserialize_spec, spec_points
-
-
-def read_file(path: str | os.PathLike[str]) -> Any:
-    """Parse a JSON (``.json``) or YAML (anything else) file.
-
-    Raises:
-        GeneratorError: if the file cannot be read or parsed.
-    """
-    file = Path(path)
-    try:
-        text = file.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        reason = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
-        raise GeneratorError("", f"cannot read file: {reason}") from None
-    if file.suffix.lower() == ".json":
-        try:
-            return json.loads(text)
-        except json.JSONDecodeError as e:
-            raise GeneratorError("", f"invalid JSON: {e}") from None
-        except RecursionError:
-            raise GeneratorError("", "the document is nested too deeply") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise GeneratorError("", "invalid YAML: " + " ".join(str(e).split())) from None
-    except RecursionError:
-        raise GeneratorError("", "the document is nested too deeply") from None
 
 
 def _finite(points: ScanPoints) -> ScanPoints:
@@ -88,22 +58,39 @@ def points_from_data(data: Any) -> ScanPoints:
     return compound_points(data)
 
 
-def scan_points(
-    generator: Spec[Any] | Mapping[str, Any] | str | os.PathLike[str],
-) -> ScanPoints:
+def scan_points(generator: Spec[Any] | Mapping[str, Any] | ScanPoints) -> ScanPoints:
     """Compute every point of a scan.
 
     Args:
         generator: A scanspec `Spec`; a CompoundGenerator dict as GDA sends it;
-            a serialized scanspec Spec (what ``Spec.serialize()`` gives); or the
-            path of a JSON (``.json``) or YAML file holding either dict.
+            a serialized scanspec Spec (what ``Spec.serialize()`` gives); or
+            `ScanPoints` already computed (returned as they are). Only data:
+            text is refused, never taken as the name of a file (a caller's
+            argument must not make the server read its files); read a file
+            with `malcolm.scan.files.read_generator_file`.
 
     Raises:
         GeneratorError: naming where in the input the first problem is.
     """
+    if isinstance(generator, ScanPoints):
+        return generator
+    if isinstance(generator, str | bytes | os.PathLike):
+        raise GeneratorError(
+            "",
+            "expected a mapping (a CompoundGenerator or a serialized scanspec Spec)"
+            f" or a Spec, got {_what(generator)}; a scan is given as data, never"
+            " as the name of a file",
+        )
     with np.errstate(all="ignore"):
         if isinstance(generator, Spec):
             return _finite(spec_points(generator))
-        if isinstance(generator, str | os.PathLike):
-            return _finite(points_from_data(read_file(generator)))
         return _finite(points_from_data(generator))
+
+
+def _what(value: Any) -> str:
+    """What kind of value ``value`` is, without echoing it."""
+    if isinstance(value, str):
+        return "text"
+    if isinstance(value, bytes):
+        return "bytes"
+    return type(value).__name__

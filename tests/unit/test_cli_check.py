@@ -9,8 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from malcolm import checker
-from malcolm.checker import Finding, check_file, detect_kind
+from malcolm.checker import Finding, check_file, checks, detect_kind
 from malcolm.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -48,7 +47,13 @@ def write(path: Path, text: str) -> Path:
         ("define.String:\n    name: a\n    value: b\n", "process"),
         ("block.demo.Hello:\n    mri: X:HELLO\n", "process"),
         ("block.demo.Hello: {mri: X}\n", "process"),
-        ("block.ADCore.PositionPlugin:\n    name: pos\n", "definition"),
+        # nothing but block.* sections: serve reads it as a process file
+        ("block.ADCore.PositionPlugin:\n    name: pos\n", "process"),
+        (
+            "init.String:\n  name: p\nblock.ADCore.PositionPlugin:\n  name: c\n",
+            "definition",
+        ),
+        ("controller.X:\nblock.ADCore.PositionPlugin:\n    name: pos\n", "definition"),
         ("parts.PalettePart:\n    name: PCAP\n", "design"),
         ("fixed.Int:\n    name: A.B\n    value: 1\n", "design"),
         ("parts.ModelPart:\n    name: M\n", "design"),
@@ -130,7 +135,9 @@ def test_definitions_are_expanded_with_their_children(capsys, tmp_path):
 def test_child_definitions_found_with_search_path(capsys, tmp_path):
     write(tmp_path / "lib/x/Child.yaml", "init.String:\n    name: a\n")
     parent = write(
-        tmp_path / "mine/Parent.yaml", "block.x.Child:\n    name: c\n    a: hi\n"
+        tmp_path / "mine/Parent.yaml",
+        "init.String:\n    name: greeting\n    default: hi\n"
+        "block.x.Child:\n    name: c\n    a: '{greeting}'\n",
     )
     assert run(capsys, parent)[0] == 1
     status, out, _ = run(capsys, "-I", tmp_path / "lib", parent)
@@ -268,7 +275,7 @@ def test_internal_errors_are_reported_not_raised(capsys, monkeypatch, tmp_path):
     def boom(*args, **kwargs):
         raise ZeroDivisionError("boom")
 
-    monkeypatch.setattr(checker, "_check_definition", boom)
+    monkeypatch.setattr(checks, "_check_definition", boom)
     path = write(tmp_path / "d.yaml", "init.String:\n    name: a\n")
     status, out, _ = run(capsys, path)
     assert status == 1
@@ -349,7 +356,7 @@ def test_model_with_a_character_yaml_forbids(capsys, tmp_path):
     model = write(tmp_path / "m.yaml", "name: M\n# \x1f\nstates: {}\n")
     status, out, _ = run(capsys, model)
     assert status == 1
-    assert out[0].startswith(f"{model}:2: bad YAML:")
+    assert out[0].startswith(f"{model}:2: YAML error:")
 
 
 def test_directories_are_checked_file_by_file(capsys, tmp_path):

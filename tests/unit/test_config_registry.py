@@ -25,9 +25,17 @@ def module(tmp_path, monkeypatch):
     (tmp_path / f"{name}.py").write_text(
         textwrap.dedent(
             """\
-            class MyPart:
-                class Inner:
+            from malcolm.parts import Part
+
+
+            class MyPart(Part):
+                class Inner(Part):
                     pass
+
+
+            class NotAPart:
+                pass
+
 
             NOT_CALLABLE = 42
             """
@@ -97,7 +105,7 @@ def test_colon_import_path_from_yaml(module):
 def test_dotted_path_errors(module):
     with pytest.raises(ConfigError, match=r"^f\.yaml:2: .*has no attribute 'Nope'"):
         lookup(f"parts.{module}.Nope", "f.yaml", 2)
-    with pytest.raises(ConfigError, match="not a class"):
+    with pytest.raises(ConfigError, match="a value of type int, not a Part class"):
         lookup(f"parts.{module}.NOT_CALLABLE", "f.yaml", 2)
 
 
@@ -119,11 +127,22 @@ def test_entry_point(tmp_path, monkeypatch, module):
         f"[{registry.ENTRY_POINT_GROUP}]\n"
         f"parts.EntryPart = {module}:MyPart\n"
         f"parts.BrokenEntry = {module}:Missing\n"
+        f"parts.NotAPart = {module}:NotAPart\n"
+        f"controller.PartAsController = {module}:MyPart\n"
     )
     assert lookup("parts.EntryPart", "f.yaml", 1).__name__ == "MyPart"
     assert "parts.EntryPart" in known_kinds()
     with pytest.raises(ConfigError, match="cannot load entry point"):
         lookup("parts.BrokenEntry", "f.yaml", 1)
+    with pytest.raises(ConfigError) as info:
+        lookup("parts.NotAPart", "f.yaml", 4)
+    assert str(info.value) == (
+        f"f.yaml:4: section type 'parts.NotAPart' (entry point '{module}:NotAPart')"
+        f" names the class {module}.NotAPart, not a Part class (a section names a"
+        " registered section type or a Part subclass)"
+    )
+    with pytest.raises(ConfigError, match="not a Controller class"):
+        lookup("controller.PartAsController", "f.yaml", 1)
 
 
 def test_unknown_kind_suggests_a_known_one(kinds):

@@ -88,8 +88,8 @@ def test_bad_yaml_names_file_and_line(tmp_path: Path) -> None:
     (problem,) = errors(path)
     assert problem.file == str(path)
     assert problem.line == 4
-    assert problem.message.startswith("bad YAML")
-    assert str(problem).startswith(f"{path}:4: bad YAML")
+    assert problem.message.startswith("YAML error")
+    assert str(problem).startswith(f"{path}:4: YAML error")
 
 
 def test_top_level_must_be_a_mapping(tmp_path: Path) -> None:
@@ -232,7 +232,7 @@ def test_characters_yaml_forbids_and_non_utf8_are_problems_not_crashes(tmp_path)
 
     bad = tmp_path / "bad.yaml"
     bad.write_bytes(b"name: X\x1f\n")
-    with pytest.raises(ModelError, match="bad YAML"):
+    with pytest.raises(ModelError, match="YAML error"):
         load_model(bad)
     bad.write_bytes(b"\xff\xfename: X\n")
     with pytest.raises(ModelError, match="not UTF-8"):

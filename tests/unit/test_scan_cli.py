@@ -110,7 +110,7 @@ def test_points_step_scan_duration_is_null(tmp_path, capsys):
             {**GENERATOR, "excluders": [{"typeid": "x"}]},
             "excluders[0]: unknown typeid 'x'",
         ),
-        ("{oops", "invalid JSON"),
+        ("{oops", "1: invalid JSON"),
     ],
 )
 def test_points_bad_file(tmp_path, capsys, content, message):
@@ -119,7 +119,8 @@ def test_points_bad_file(tmp_path, capsys, content, message):
     assert main(["points", str(file)]) == 1
     out, err = capsys.readouterr()
     assert out == ""
-    assert err.startswith(f"{file}: {message}")
+    separator = ":" if message[0].isdigit() else ": "
+    assert err.startswith(f"{file}{separator}{message}")
     assert "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
 
@@ -169,7 +170,7 @@ def test_console_script_bad_file(tmp_path):
     assert result.returncode == 1
     assert result.stdout == ""
     assert result.stderr.strip() == (
-        f"{file}: typeid: expected "
+        f"{file}:1: typeid: expected "
         f"'scanpointgenerator:generator/CompoundGenerator:1.0', got 'nope'"
     )
 

@@ -11,6 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from malcolm.scan import GeneratorError, scan_points
+from malcolm.scan.files import points_from_file
 
 P = "scanpointgenerator:generator/"
 ROI = "scanpointgenerator:roi/"
@@ -413,28 +414,29 @@ def test_scanspec_that_cannot_be_calculated():
 @pytest.mark.parametrize(
     ("name", "text", "message"),
     [
-        ("bad.json", "{not json", "invalid JSON: "),
-        ("bad.yaml", "a: [1, 2", "invalid YAML: "),
+        ("bad.json", "{not json", ":1: invalid JSON: "),
+        ("bad.yaml", "a: [1, 2", ":1: YAML error: "),
         (
             "empty.yaml",
             "",
-            "expected a mapping (a CompoundGenerator or a serialized scanspec "
+            ": expected a mapping (a CompoundGenerator or a serialized scanspec "
             "Spec), got null",
         ),
-        ("list.json", "[]", "expected a mapping"),
+        ("list.json", "[]", ": expected a mapping"),
     ],
 )
 def test_bad_files(tmp_path, name, text, message):
     file = tmp_path / name
     file.write_text(text)
     with pytest.raises(GeneratorError) as info:
-        scan_points(file)
-    assert str(info.value).startswith(message)
+        points_from_file(file)
+    assert str(info.value).startswith(f"{file}{message}")
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(GeneratorError, match="^cannot read file: No such file"):
-        scan_points(tmp_path / "absent.json")
+    file = tmp_path / "absent.json"
+    with pytest.raises(GeneratorError, match="absent.json: cannot read file: No such"):
+        points_from_file(file)
 
 
 # -- fuzzing: any corruption gives a result or a GeneratorError ---------------

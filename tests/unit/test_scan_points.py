@@ -10,6 +10,7 @@ import pytest
 from scanspec.specs import Concat, Fly, Linspace, Spiral, Static, Zip
 
 from malcolm.scan import Dimension, GeneratorError, ScanPoints, scan_points
+from malcolm.scan.files import points_from_file
 
 CASES_FILE = Path(__file__).parents[3] / "shared" / "scanpoints" / "cases.json"
 TOL = 1e-9
@@ -411,7 +412,7 @@ def test_scanspec_from_yaml_file(tmp_path):
 
     file = tmp_path / "spec.yaml"
     file.write_text(yaml.safe_dump(dict(spec.serialize())))
-    points = scan_points(file)
+    points = points_from_file(file)
     assert points.positions["x"].tolist() == [0, 0.5, 1]
     assert points.duration.tolist() == [0.25] * 3
 
@@ -423,11 +424,11 @@ def test_generator_from_json_and_yaml_files(tmp_path):
     expected = scan_points(data).to_json()
     (tmp_path / "g.json").write_text(json.dumps(data))
     (tmp_path / "g.yml").write_text(yaml.safe_dump(data))
-    assert scan_points(tmp_path / "g.json").to_json() == expected
-    assert scan_points(str(tmp_path / "g.yml")).to_json() == expected
+    assert points_from_file(tmp_path / "g.json").to_json() == expected
+    assert points_from_file(str(tmp_path / "g.yml")).to_json() == expected
     # A configure-style wrapper is unwrapped
     (tmp_path / "w.json").write_text(json.dumps({"generator": data}))
-    assert scan_points(tmp_path / "w.json").to_json() == expected
+    assert points_from_file(tmp_path / "w.json").to_json() == expected
 
 
 # -- ScanPoints methods ------------------------------------------------------
