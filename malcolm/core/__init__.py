@@ -13,6 +13,7 @@ from .errors import (
     WaitTimeoutError,
 )
 from .fields import Attribute, Field, Method, MethodLog
+from .generator import PointGeneratorMeta
 from .metas import (
     BlockMeta,
     BooleanArrayMeta,
@@ -38,9 +39,9 @@ __all__ = [
     "ChoiceArrayMeta", "ChoiceMeta", "Field", "MalcolmError", "MapMeta", "Meta",
     "Method", "MethodLog", "MethodMeta", "NotAllowedError", "NotFoundError",
     "NotWriteableError", "NumberArrayMeta", "NumberMeta", "PhaseTimeoutError",
-    "Process", "StringArrayMeta", "StringMeta", "Subscription", "TableMeta",
-    "TimeStamp", "WaitTimeoutError", "apply_changes", "from_dict", "register_typeid",
-    "to_dict",
+    "PointGeneratorMeta", "Process", "StringArrayMeta", "StringMeta",
+    "Subscription", "TableMeta", "TimeStamp", "WaitTimeoutError", "apply_changes",
+    "from_dict", "register_typeid", "to_dict",
 ]  # fmt: skip
 
 
