@@ -32,6 +32,17 @@ class Field:
         if self.block is not None:
             self.block.notify(changes)
 
+    def _off_loop(self, func: Callable[..., Any], *args: Any) -> bool:
+        """True if ``func(*args)``, a change of this field called off its
+        process's loop thread, was run on the loop instead (see
+        :mod:`malcolm.core.threads`); False: go ahead here."""
+        block = self.block
+        owner = block.owner if block is not None else None
+        if owner is None or owner.here():
+            return False
+        done, _ = owner.elsewhere(f"{block.mri}.{self.name}", func, *args)
+        return done
+
     def to_dict(self) -> dict[str, Any]:
         raise NotImplementedError
 
@@ -83,6 +94,8 @@ class Attribute(Field):
         validate: bool = True,
     ) -> None:
         """Set the value (and optionally alarm); publish one delta."""
+        if self._off_loop(self.set_value, value, alarm, timeStamp, validate):
+            return
         if validate:
             value = self.validate(value)
         self.value = value
@@ -95,6 +108,9 @@ class Attribute(Field):
         self._notify(changes)
 
     def set_alarm(self, alarm: Alarm) -> None:
+        """Set the alarm (and timeStamp) alone; publish one delta."""
+        if self._off_loop(self.set_alarm, alarm):
+            return
         if alarm != self.alarm:
             self.alarm = alarm
             self.timeStamp = TimeStamp.now()
@@ -106,6 +122,8 @@ class Attribute(Field):
             )
 
     def set_writeable(self, writeable: bool) -> None:
+        if self._off_loop(self.set_writeable, writeable):
+            return
         if writeable != self.meta.writeable:
             self.meta.writeable = writeable
             self._notify([[[self.name, "meta", "writeable"], writeable]])
@@ -181,15 +199,21 @@ class Method(Field):
         self.returned = MethodLog()
 
     def set_took(self, args: Mapping[str, Any]) -> None:
+        if self._off_loop(self.set_took, args):
+            return
         self.took = MethodLog(dict(args), list(args), Alarm.ok, TimeStamp.now())
         self._notify([[[self.name, "took"], self.took.to_dict()]])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
+        if self._off_loop(self.set_returned, value, alarm):
+            return
         value = dict(value or {})
         self.returned = MethodLog(value, list(value), alarm, TimeStamp.now())
         self._notify([[[self.name, "returned"], self.returned.to_dict()]])
 
     def set_writeable(self, writeable: bool) -> None:
+        if self._off_loop(self.set_writeable, writeable):
+            return
         if writeable != self.meta.writeable:
             self.meta.writeable = writeable
             self._notify([[[self.name, "meta", "writeable"], writeable]])

@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from malcolm.core import AbortedError, Attribute, Subscription, WaitTimeoutError
+from malcolm.core.threads import marshalling
 
 from .views import FieldView
 
@@ -199,13 +200,23 @@ class BlockingTask:
         )
 
     def call(self, func: Callable[..., Any], *args: Any) -> Any:
-        """Run ``func`` in this thread as part of this task (views use it)."""
+        """Run ``func`` in this thread as part of this task (views use it).
+
+        Changes ``func`` makes to block state (``attr.set_value(...)``) are
+        run on the process's loop while this thread waits for them.
+        """
         previous = current_blocking_task()
         _current.task = self
+        loop = self.process.loop
+        assert loop is not None
         try:
-            return func(*args)
+            with marshalling(loop, self._run_on_loop):
+                return func(*args)
         finally:
             _current.task = previous
+
+    def _run_on_loop(self, func: Callable[..., Any], *args: Any) -> Any:
+        return self._wait(self._submit(lambda: func(*args)))
 
     def _submit(self, coro_fn: Callable[[], Any]) -> concurrent.futures.Future[Any]:
         if self.cancelled:
