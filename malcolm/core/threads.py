@@ -73,33 +73,46 @@ def call_threadsafe(
 
     If ``func`` returns an awaitable it is awaited on the loop. Returns a
     future of the result (or of the exception): ``.result()`` waits for it
-    in another thread. On the loop's own thread ``func`` runs at once (so
-    a plain function's future is already done: never block on it there).
+    in another thread; cancelling it cancels the awaitable. On the loop's own
+    thread ``func`` runs at once (so a plain function's future is already
+    done: never block on it there). Nothing is created before the loop runs
+    ``func``, so a loop that stops first leaves no coroutine unawaited.
     """
     fut: concurrent.futures.Future[Any] = concurrent.futures.Future()
 
-    def run() -> None:
+    def settle(result: Any = None, error: BaseException | None = None) -> None:
         if not fut.set_running_or_notify_cancel():
+            return  # cancelled by whoever waited
+        if error is not None:
+            fut.set_exception(error)
+        else:
+            fut.set_result(result)
+
+    def run() -> None:
+        if fut.cancelled():
             return
         try:
             result = func(*args)
         except BaseException as e:  # handed to whoever waits for the future
-            fut.set_exception(e)
+            settle(error=e)
             return
         if not inspect.isawaitable(result):
-            fut.set_result(result)
+            settle(result)
             return
         task = asyncio.ensure_future(result)
 
         def copy(t: asyncio.Future[Any]) -> None:
             if t.cancelled():
                 fut.cancel()
-            elif t.exception() is not None:
-                fut.set_exception(t.exception())  # type: ignore[arg-type]
             else:
-                fut.set_result(t.result())
+                settle(t.result() if t.exception() is None else None, t.exception())
+
+        def on_cancel(f: concurrent.futures.Future[Any]) -> None:
+            if f.cancelled() and not loop.is_closed():
+                loop.call_soon_threadsafe(task.cancel)
 
         task.add_done_callback(copy)
+        fut.add_done_callback(on_cancel)
 
     if _on_loop_thread(loop):
         run()
