@@ -128,6 +128,31 @@ class Attribute(Field):
             self.meta.writeable = writeable
             self._notify([[[self.name, "meta", "writeable"], writeable]])
 
+    def set_meta(self, meta: Meta, value: Any = None) -> None:
+        """Replace the meta (e.g. with the limits a channel reported), and the
+        value with ``value`` if given; publish one delta.
+
+        The (new or current) value must fit the new meta: if it does not,
+        BadValueError names the attribute and nothing changes.
+        """
+        if self._off_loop(self.set_meta, meta, value):
+            return
+        new = self.value if value is None else value
+        try:
+            new = meta.validate(new)
+        except BadValueError as e:
+            raise BadValueError(f"{self.path_name}: {e}") from None
+        self.meta = meta
+        changes: list[Change] = [[[self.name, "meta"], meta.to_dict()]]
+        if isinstance(meta, TableMeta):
+            changes.append([[self.name, "labels"], self.to_dict()["labels"]])
+        if value is not None or new != self.value:
+            self.value = new
+            self.timeStamp = TimeStamp.now()
+            changes.append([[self.name, "value"], self.value_dict()])
+            changes.append([[self.name, "timeStamp"], self.timeStamp.to_dict()])
+        self._notify(changes)
+
     def value_dict(self) -> Any:
         """The value as plain data, as it appears in ``to_dict()["value"]``."""
         if isinstance(self.meta, TableMeta):

@@ -6,7 +6,7 @@ import asyncio
 import concurrent.futures
 import logging
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from .block import Block
@@ -52,12 +52,24 @@ class Process:
     subscribed path (``[[], value]`` replaces it whole). Once started, the
     loop ``start()`` ran on owns the blocks: other threads reach it through
     :meth:`call_threadsafe` (see :mod:`malcolm.core.threads`).
+
+    ``channels`` chooses a channel backend per transport, e.g.
+    ``{"ca": "soft"}`` (see :mod:`malcolm.io` and docs/channels.md).
     """
 
-    def __init__(self, name: str = "malcolm", designs_dir: str | None = None) -> None:
+    def __init__(
+        self,
+        name: str = "malcolm",
+        designs_dir: str | None = None,
+        channels: Mapping[str, str] | None = None,
+    ) -> None:
         self.name = name
         #: where managers keep their designs (``<designs_dir>/<mri>/``)
         self.designs_dir = designs_dir
+        #: transport -> name of the channel backend chosen for it
+        self.channels: dict[str, str] = dict(channels or {})
+        #: transport -> the backend object in use (made by malcolm.io)
+        self.backends: dict[str, Any] = {}
         #: the loop that owns the blocks' state, once started
         self.owner: LoopOwner | None = None
         self._controllers: dict[str, Controller] = {}
@@ -113,8 +125,16 @@ class Process:
                 controller.health.set_value(f"did not start: {type(e).__name__}: {e}")
 
     async def stop(self) -> None:
+        """Stop every controller, then close the channel backends in use."""
         for controller in list(self._controllers.values()):
             await controller.stop()
+        for transport, backend in list(self.backends.items()):
+            try:
+                await backend.close()
+            except Exception as e:  # one backend must not stop the others
+                log.error(
+                    "%s backend did not close: %s: %s", transport, type(e).__name__, e
+                )
         self.started = False
 
     def call_threadsafe(
