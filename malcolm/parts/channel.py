@@ -144,7 +144,9 @@ class ChannelPart(Part):
             if self.attr.alarm.status is AlarmStatus.CLIENT_STATUS:
                 self.attr.set_alarm(self._alarm)
         elif state in (ConnectionState.CONNECTING, ConnectionState.DISCONNECTED):
-            text = f"{name}: {message}" if name not in message else message
+            names = [n for n in (self.read, self.write) if n]
+            named = any(n in message for n in names)
+            text = message if named else f"{name}: {message}"
             self.attr.set_alarm(Alarm.disconnected(text))
             self._registrar.report_health(text)
 
