@@ -83,6 +83,12 @@ class Process:
 
     # ---- hosting
     def add_controller(self, controller: Controller) -> None:
+        """Host ``controller``'s block (once started: on the loop's thread)."""
+        owner = self.owner
+        if owner is not None and not owner.here():
+            what = f"the blocks of process {self.name!r}"
+            if owner.elsewhere(what, self.add_controller, controller)[0]:
+                return
         mri = controller.mri
         if mri in self._controllers:
             raise ValueError(f"a block with mri {mri!r} already exists in {self.name}")

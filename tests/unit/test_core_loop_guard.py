@@ -54,6 +54,9 @@ def test_a_change_from_another_thread_raises_and_changes_nothing(tp):
         block.add(Attribute("extra", StringMeta()))
     with pytest.raises(OffLoopError, match="the subscriptions of C.counter"):
         tp.process.subscribe(["C", "counter"], print)
+    with pytest.raises(OffLoopError, match="the blocks of process 'guarded'"):
+        tp.process.add_controller(StatefulController("D"))
+    assert tp.process.mris == ["C"]
     assert block.counter.value == 0.0 and "extra" not in block
     assert tp.get(["C", "counter", "value"]) == 0.0
     assert seen == [0.0]
