@@ -110,10 +110,13 @@ class ChannelPart(Part):
             return
         try:
             info = await channel.connect(self.connect_timeout)
+            reading = await channel.get()
         except ChannelTimeoutError:
             self._on_connection(channel.state, channel.message or NOT_CONNECTED)
             return
-        reading = await channel.get()
+        except DisconnectedError as e:  # lost again at once: it keeps trying
+            self._on_connection(ConnectionState.DISCONNECTED, str(e))
+            return
         meta = self.meta_from_info(self.attr.meta, info)
         if meta is not None:
             try:

@@ -111,6 +111,28 @@ def test_a_channel_that_does_not_connect_at_start_is_reported_and_recovers(
     assert after == ("OK", Alarm.ok)
 
 
+def test_a_connection_lost_again_at_once_does_not_stop_the_block(monkeypatch):
+    from malcolm.io import SoftChannel
+
+    backend = SoftBackend()
+
+    async def lost(self):
+        backend.drop(self.read, "gone again")
+        raise DisconnectedError(f"{self.read}: gone again")
+
+    monkeypatch.setattr(SoftChannel, "get", lost)
+
+    async def scenario():
+        process = det_process(backend)
+        await process.start()
+        block = process.get_block("DRV")
+        return block.state.value, block.health.value, block.exposure.alarm.status
+
+    state, health, status = run(scenario)
+    assert state == "Ready" and "BL:Exposure_RBV: gone again" in health
+    assert status is AlarmStatus.CLIENT_STATUS
+
+
 def test_a_put_completes_then_shows_the_readback_not_a_late_monitor():
     backend = SoftBackend()
     backend.define("BL:Exposure_RBV", 0.0, follow=lambda demand: round(demand, 1))
