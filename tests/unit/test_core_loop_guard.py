@@ -11,6 +11,7 @@ import pytest
 from malcolm.controllers.runnable import RunnableController
 from malcolm.controllers.stateful import StatefulController
 from malcolm.core import (
+    AbortedError,
     NumberMeta,
     OffLoopError,
     Process,
@@ -167,3 +168,49 @@ def test_the_environment_variable_turns_the_guard_on():
         )
         out[value] = result.stdout.strip()
     assert out == {"1": "True", "0": "False", "": "False"}
+
+
+class Looper(Part):
+    """A def Run hook setting its attribute until it is stopped."""
+
+    def setup(self, registrar):
+        self.steps = registrar.add_attribute("steps", NumberMeta("int32"), 0)
+        self.ended = threading.Event()
+        self.error = None
+
+    @RunnableDevice.Run
+    def run(self, task, device):
+        try:
+            for i in range(1, 10_000):
+                self.steps.set_value(i)
+                threading.Event().wait(0.005)
+        except Exception as e:
+            self.error = e
+        finally:
+            self.ended.set()
+
+
+def test_a_def_hook_cannot_change_state_once_its_phase_is_aborted():
+    part = Looper("looper")
+
+    async def scenario():
+        import asyncio
+
+        process = Process()
+        process.add_controller(RunnableController("DET", [part]))
+        await process.start()
+        await process.post(["DET", "configure"], {"generator": compound(("x", 1))})
+        running = asyncio.ensure_future(process.post(["DET", "run"]))
+        block = process.get_block("DET")
+        while block.steps.value < 3:
+            await asyncio.sleep(0.005)
+        await process.post(["DET", "abort"])
+        await asyncio.get_running_loop().run_in_executor(None, part.ended.wait, 10)
+        with pytest.raises(AbortedError):
+            await running
+        return block.steps.value, block.state.value
+
+    at_end, state = run(scenario)
+    assert state == "Aborted"
+    assert isinstance(part.error, AbortedError)
+    assert part.steps.value == at_end
