@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
-import os
 from typing import Any
 
 from .errors import BadValueError
-from .metas import Meta, _describe
+from .metas import Meta
 
 
 class PointGeneratorMeta(Meta):
     """A scan: a scanspec Spec or a CompoundGenerator dict as GDA sends it.
 
     The value is kept as plain data (a Spec is serialized); validating it
-    computes its points, so a scan that cannot be done is refused here.
-    A string is refused: an argument is data, never a path on the server.
+    computes its points (``malcolm.scan.scan_points``), so a scan that cannot
+    be done is refused here. Text is refused too, never opened: an argument
+    is data, never a path on the server.
     """
 
     typeid = "malcolm:core/PointGeneratorMeta:1.0"
@@ -27,11 +27,6 @@ class PointGeneratorMeta(Meta):
             raise BadValueError("a generator is required")
         if isinstance(value, ScanPoints):
             return value
-        if isinstance(value, str | bytes | os.PathLike):
-            raise BadValueError(
-                "expected a scanspec Spec or a CompoundGenerator structure,"
-                f" got {_describe(value)} (text is not read as a file)"
-            )
         if hasattr(value, "serialize"):  # a scanspec Spec: keep it plain data
             value = value.serialize()
         try:

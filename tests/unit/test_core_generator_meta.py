@@ -58,7 +58,7 @@ def test_a_string_is_refused_without_opening_anything(monkeypatch, tmp_path):
     monkeypatch.setattr(builtins, "open", spy)
     meta = PointGeneratorMeta("scan")
     for value in ["/etc/passwd", str(secret), secret]:
-        with pytest.raises(BadValueError, match="text is not read as a file"):
+        with pytest.raises(BadValueError, match="never as the name of a file"):
             meta.validate(value)
     assert opened == []
 
