@@ -24,6 +24,7 @@ from malcolm.core import (
     NumberMeta,
     StringArrayMeta,
 )
+from malcolm.core.generator import GeneratorMeta
 from malcolm.scan import ScanPoints, scan_points
 from malcolm.scan.errors import GeneratorError
 
@@ -31,25 +32,6 @@ from .base import Device
 from .manager import ManagerController
 
 MAX_VALIDATE_ROUNDS = 10
-
-
-class GeneratorMeta(Meta):
-    """A scan: a scanspec Spec or a CompoundGenerator dict as GDA sends it."""
-
-    typeid = "malcolm:core/PointGeneratorMeta:1.0"
-
-    def validate(self, value: Any) -> Any:
-        if value is None:
-            raise BadValueError("a generator is required")
-        if isinstance(value, ScanPoints):
-            return value
-        if hasattr(value, "serialize"):  # a scanspec Spec: keep it plain data
-            value = value.serialize()
-        try:
-            scan_points(value)
-        except GeneratorError as e:
-            raise BadValueError(str(e)) from None
-        return value
 
 
 class RunnableController(ManagerController):

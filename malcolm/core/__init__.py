@@ -13,6 +13,7 @@ from .errors import (
     WaitTimeoutError,
 )
 from .fields import Attribute, Field, Method, MethodLog
+from .generator import PointGeneratorMeta
 from .metas import (
     BlockMeta,
     BooleanArrayMeta,
@@ -30,6 +31,12 @@ from .metas import (
 )
 from .process import Process, Subscription
 from .serialize import apply_changes, from_dict, register_typeid, to_dict
+from .threads import (
+    OffLoopError,
+    call_threadsafe,
+    enable_loop_guard,
+    loop_guard_enabled,
+)
 from .timestamp import TimeStamp
 
 __all__ = [
@@ -37,10 +44,11 @@ __all__ = [
     "BadValueError", "Block", "BlockMeta", "BooleanArrayMeta", "BooleanMeta",
     "ChoiceArrayMeta", "ChoiceMeta", "Field", "MalcolmError", "MapMeta", "Meta",
     "Method", "MethodLog", "MethodMeta", "NotAllowedError", "NotFoundError",
-    "NotWriteableError", "NumberArrayMeta", "NumberMeta", "PhaseTimeoutError",
-    "Process", "StringArrayMeta", "StringMeta", "Subscription", "TableMeta",
-    "TimeStamp", "WaitTimeoutError", "apply_changes", "from_dict", "register_typeid",
-    "to_dict",
+    "NotWriteableError", "NumberArrayMeta", "NumberMeta", "OffLoopError",
+    "PhaseTimeoutError", "PointGeneratorMeta", "Process", "StringArrayMeta",
+    "StringMeta", "Subscription", "TableMeta", "TimeStamp", "WaitTimeoutError",
+    "apply_changes", "call_threadsafe", "enable_loop_guard", "from_dict",
+    "loop_guard_enabled", "register_typeid", "to_dict",
 ]  # fmt: skip
 
 

@@ -8,6 +8,7 @@ from typing import Any
 from .errors import NotFoundError
 from .fields import Attribute, Change, Field, Method
 from .metas import BlockMeta
+from .threads import LoopOwner
 
 BLOCK_TYPEID = "malcolm:core/Block:1.0"
 
@@ -23,10 +24,14 @@ class Block:
         self.meta = BlockMeta(description=description, tags=tags)
         self._fields: dict[str, Field] = {}
         self._listener: Callable[[str, list[Change]], None] | None = None
+        #: the loop that owns this block's state (set by its process at start)
+        self.owner: LoopOwner | None = None
 
     # ---- structure
     def add(self, fld: Field) -> Field:
         """Add a field (or replace one with the same name)."""
+        if self._off_loop(f"{self.mri}.{fld.name}", self.add, fld):
+            return fld
         if fld.name in ("meta", "typeid") or not fld.name.isidentifier():
             raise ValueError(f"{self.mri}: invalid field name {fld.name!r}")
         old = self._fields.get(fld.name)
@@ -41,10 +46,19 @@ class Block:
         return fld
 
     def remove(self, name: str) -> None:
+        """Remove a field (nothing happens if there is none)."""
+        if self._off_loop(f"{self.mri}.{name}", self.remove, name):
+            return
         if name in self._fields:
             self._fields.pop(name).block = None
             self.meta.fields.remove(name)
             self.notify([[[name]], [["meta", "fields"], list(self.meta.fields)]])
+
+    def _off_loop(self, what: str, func: Callable[..., Any], *args: Any) -> bool:
+        owner = self.owner
+        if owner is None or owner.here():
+            return False
+        return owner.elsewhere(what, func, *args)[0]
 
     def _structure_changes(self, name: str) -> list[Change]:
         return [

@@ -32,4 +32,20 @@ class PhaseTimeoutError(MalcolmError, TimeoutError):
 
 
 class WaitTimeoutError(MalcolmError, TimeoutError):
-    """Task.when_matches (or a put) did not complete in time."""
+    """A wait (a call, a put, when_matches...) gave up after its timeout.
+
+    A call or put that timed out goes on (see :func:`still_running`).
+    """
+
+
+def still_running(what: str, timeout: float | None) -> WaitTimeoutError:
+    """The error of a caller whose ``timeout`` expired: the operation goes on.
+
+    The rule for every timeout of a method call or a put (docs/embedding.md):
+    a timeout stops the caller waiting; it never cancels or undoes the
+    operation on the block. To stop that, call abort() (or cancel it).
+    """
+    return WaitTimeoutError(
+        f"{what} did not finish within {timeout} s; it goes on"
+        " (the timeout only stopped the wait: call abort() to stop it)"
+    )

@@ -32,6 +32,17 @@ class Field:
         if self.block is not None:
             self.block.notify(changes)
 
+    def _off_loop(self, func: Callable[..., Any], *args: Any) -> bool:
+        """True if ``func(*args)``, a change of this field called off its
+        process's loop thread, was run on the loop instead (see
+        :mod:`malcolm.core.threads`); False: go ahead here."""
+        block = self.block
+        owner = block.owner if block is not None else None
+        if owner is None or owner.here():
+            return False
+        done, _ = owner.elsewhere(f"{block.mri}.{self.name}", func, *args)
+        return done
+
     def to_dict(self) -> dict[str, Any]:
         raise NotImplementedError
 
@@ -83,6 +94,8 @@ class Attribute(Field):
         validate: bool = True,
     ) -> None:
         """Set the value (and optionally alarm); publish one delta."""
+        if self._off_loop(self.set_value, value, alarm, timeStamp, validate):
+            return
         if validate:
             value = self.validate(value)
         self.value = value
@@ -95,6 +108,9 @@ class Attribute(Field):
         self._notify(changes)
 
     def set_alarm(self, alarm: Alarm) -> None:
+        """Set the alarm (and timeStamp) alone; publish one delta."""
+        if self._off_loop(self.set_alarm, alarm):
+            return
         if alarm != self.alarm:
             self.alarm = alarm
             self.timeStamp = TimeStamp.now()
@@ -106,9 +122,36 @@ class Attribute(Field):
             )
 
     def set_writeable(self, writeable: bool) -> None:
+        if self._off_loop(self.set_writeable, writeable):
+            return
         if writeable != self.meta.writeable:
             self.meta.writeable = writeable
             self._notify([[[self.name, "meta", "writeable"], writeable]])
+
+    def set_meta(self, meta: Meta, value: Any = None) -> None:
+        """Replace the meta (e.g. with the limits a channel reported), and the
+        value with ``value`` if given; publish one delta.
+
+        The (new or current) value must fit the new meta: if it does not,
+        BadValueError names the attribute and nothing changes.
+        """
+        if self._off_loop(self.set_meta, meta, value):
+            return
+        new = self.value if value is None else value
+        try:
+            new = meta.validate(new)
+        except BadValueError as e:
+            raise BadValueError(f"{self.path_name}: {e}") from None
+        self.meta = meta
+        changes: list[Change] = [[[self.name, "meta"], meta.to_dict()]]
+        if isinstance(meta, TableMeta):
+            changes.append([[self.name, "labels"], self.to_dict()["labels"]])
+        if value is not None or new != self.value:
+            self.value = new
+            self.timeStamp = TimeStamp.now()
+            changes.append([[self.name, "value"], self.value_dict()])
+            changes.append([[self.name, "timeStamp"], self.timeStamp.to_dict()])
+        self._notify(changes)
 
     def value_dict(self) -> Any:
         """The value as plain data, as it appears in ``to_dict()["value"]``."""
@@ -181,15 +224,21 @@ class Method(Field):
         self.returned = MethodLog()
 
     def set_took(self, args: Mapping[str, Any]) -> None:
+        if self._off_loop(self.set_took, args):
+            return
         self.took = MethodLog(dict(args), list(args), Alarm.ok, TimeStamp.now())
         self._notify([[[self.name, "took"], self.took.to_dict()]])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
+        if self._off_loop(self.set_returned, value, alarm):
+            return
         value = dict(value or {})
         self.returned = MethodLog(value, list(value), alarm, TimeStamp.now())
         self._notify([[[self.name, "returned"], self.returned.to_dict()]])
 
     def set_writeable(self, writeable: bool) -> None:
+        if self._off_loop(self.set_writeable, writeable):
+            return
         if writeable != self.meta.writeable:
             self.meta.writeable = writeable
             self._notify([[[self.name, "meta", "writeable"], writeable]])

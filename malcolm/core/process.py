@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import logging
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from .block import Block
 from .errors import NotFoundError
 from .fields import Change
+from .threads import LoopOwner, call_threadsafe
 
 if TYPE_CHECKING:
     from malcolm.controllers.base import Controller
@@ -47,13 +49,29 @@ class Process:
 
     Every change a block makes is delivered to the subscribers of any path
     it touches, as a list of ``[path, value]`` changes relative to the
-    subscribed path (``[[], value]`` replaces it whole).
+    subscribed path (``[[], value]`` replaces it whole). Once started, the
+    loop ``start()`` ran on owns the blocks: other threads reach it through
+    :meth:`call_threadsafe` (see :mod:`malcolm.core.threads`).
+
+    ``channels`` chooses a channel backend per transport, e.g.
+    ``{"ca": "soft"}`` (see :mod:`malcolm.io` and docs/channels.md).
     """
 
-    def __init__(self, name: str = "malcolm", designs_dir: str | None = None) -> None:
+    def __init__(
+        self,
+        name: str = "malcolm",
+        designs_dir: str | None = None,
+        channels: Mapping[str, str] | None = None,
+    ) -> None:
         self.name = name
         #: where managers keep their designs (``<designs_dir>/<mri>/``)
         self.designs_dir = designs_dir
+        #: transport -> name of the channel backend chosen for it
+        self.channels: dict[str, str] = dict(channels or {})
+        #: transport -> the backend object in use (made by malcolm.io)
+        self.backends: dict[str, Any] = {}
+        #: the loop that owns the blocks' state, once started
+        self.owner: LoopOwner | None = None
         self._controllers: dict[str, Controller] = {}
         self._subs: dict[str, list[Subscription]] = {}
         # deliveries wait here while a callback runs, so that every
@@ -65,12 +83,19 @@ class Process:
 
     # ---- hosting
     def add_controller(self, controller: Controller) -> None:
+        """Host ``controller``'s block (once started: on the loop's thread)."""
+        owner = self.owner
+        if owner is not None and not owner.here():
+            what = f"the blocks of process {self.name!r}"
+            if owner.elsewhere(what, self.add_controller, controller)[0]:
+                return
         mri = controller.mri
         if mri in self._controllers:
             raise ValueError(f"a block with mri {mri!r} already exists in {self.name}")
         self._controllers[mri] = controller
         controller.process = self
         controller.block.set_listener(self._on_changes)
+        controller.block.owner = self.owner
 
     @property
     def mris(self) -> list[str]:
@@ -87,8 +112,14 @@ class Process:
         return self.get_controller(mri).block
 
     async def start(self) -> None:
-        """Bind to the running loop and bring every controller to its ready state."""
+        """Bind to the running loop and bring every controller to its ready state.
+
+        From here on the loop's thread owns every block's state.
+        """
         self.loop = asyncio.get_running_loop()
+        self.owner = LoopOwner(self.loop, self.name)
+        for controller in self._controllers.values():
+            controller.block.owner = self.owner
         self.started = True
         for controller in list(self._controllers.values()):
             try:
@@ -100,9 +131,30 @@ class Process:
                 controller.health.set_value(f"did not start: {type(e).__name__}: {e}")
 
     async def stop(self) -> None:
+        """Stop every controller, then close the channel backends in use."""
         for controller in list(self._controllers.values()):
             await controller.stop()
+        for transport, backend in list(self.backends.items()):
+            try:
+                await backend.close()
+            except Exception as e:  # one backend must not stop the others
+                log.error(
+                    "%s backend did not close: %s: %s", transport, type(e).__name__, e
+                )
         self.started = False
+
+    def call_threadsafe(
+        self, func: Callable[..., Any], *args: Any
+    ) -> concurrent.futures.Future[Any]:
+        """Run ``func(*args)`` on the process's loop, from any thread.
+
+        The one path from library and worker threads to block state (see
+        :func:`malcolm.core.threads.call_threadsafe`): returns a future of
+        the result; ``.result()`` waits for it (never on the loop thread).
+        """
+        if self.loop is None or self.loop.is_closed():
+            raise RuntimeError(f"process {self.name!r} has not been started")
+        return call_threadsafe(self.loop, func, *args)
 
     # ---- reading and writing by path
     def get(self, path: Sequence[str]) -> Any:
@@ -148,6 +200,12 @@ class Process:
         """
         if isinstance(path, str) or not path:
             raise NotFoundError(f"subscribe needs a path [mri, ...], got {path!r}")
+        owner = self.owner
+        if owner is not None and not owner.here():
+            what = f"the subscriptions of {'.'.join(map(str, path))}"
+            done, sub = owner.elsewhere(what, self.subscribe, path, callback, delta)
+            if done:
+                return sub
         value = self.get(path)
         sub = Subscription(path, callback, delta)
         self._subs.setdefault(sub.path[0], []).append(sub)
@@ -156,6 +214,11 @@ class Process:
 
     def unsubscribe(self, sub: Subscription) -> None:
         """Stop delivery to ``sub`` (including anything not yet delivered)."""
+        owner = self.owner
+        if owner is not None and not owner.here():
+            what = f"the subscriptions of {'.'.join(map(str, sub.path))}"
+            if owner.elsewhere(what, self.unsubscribe, sub)[0]:
+                return
         sub.active = False
         subs = self._subs.get(sub.path[0], [])
         if sub in subs:

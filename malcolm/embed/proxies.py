@@ -90,7 +90,10 @@ class AttributeProxy:
         return self._owner.get([*self.path, "meta"])
 
     def put(self, value: Any, timeout: float | None = None) -> None:
-        """Put ``value``; returns when the put is complete."""
+        """Put ``value``; returns when the put is complete.
+
+        After ``timeout`` seconds raises WaitTimeoutError; the put goes on.
+        """
         self._owner.put(self.path, value, timeout)
 
     def subscribe(
@@ -128,7 +131,10 @@ class MethodProxy:
     def call(
         self, params: dict[str, Any] | None = None, timeout: float | None = None
     ) -> Any:
-        """Call with a dict of parameters; WaitTimeoutError after ``timeout``."""
+        """Call with a dict of parameters.
+
+        After ``timeout`` seconds raises WaitTimeoutError; the call goes on.
+        """
         return self._owner.post([self.mri, self.name], params, timeout)
 
     def future(self, **params: Any) -> concurrent.futures.Future[Any]:

@@ -18,6 +18,7 @@ from malcolm.core import (
     Subscription,
     WaitTimeoutError,
 )
+from malcolm.core.errors import still_running
 
 from .files import from_file
 from .proxies import BlockProxy
@@ -74,7 +75,9 @@ class ThreadedProcess:
     Every method blocks the calling thread until the loop has done the work
     and may be called from any thread except the loop's own (which would
     wait for itself: that raises RuntimeError). ``timeout`` arguments are in
-    seconds; ``None`` waits for ever.
+    seconds; ``None`` waits for ever. A timeout stops the caller waiting and
+    raises WaitTimeoutError; the call or put goes on (call abort() to stop
+    it).
     """
 
     def __init__(self, process: Process) -> None:
@@ -115,6 +118,12 @@ class ThreadedProcess:
             self._dispatcher.start()
         try:
             self._run(self.process.start(), timeout, "start")
+        except WaitTimeoutError:
+            self._shutdown()  # the loop and its thread go: start does not go on
+            raise WaitTimeoutError(
+                f"{self.process.name}: start did not finish within {timeout} s;"
+                " the process was stopped"
+            ) from None
         except BaseException:
             self._shutdown()
             raise
@@ -129,6 +138,11 @@ class ThreadedProcess:
         try:
             if self.started:
                 self._run(self.process.stop(), timeout, "stop")
+        except WaitTimeoutError:
+            raise WaitTimeoutError(
+                f"{self.process.name}: stop did not finish within {timeout} s;"
+                " the loop was stopped anyway"
+            ) from None
         finally:
             self.started = False
             for sub in list(self._subs):
@@ -207,6 +221,11 @@ class ThreadedProcess:
         return loop
 
     def _run(self, coro: Coroutine[Any, Any, T], timeout: float | None, what: str) -> T:
+        """Run ``coro`` on the loop and wait for it.
+
+        After ``timeout`` seconds raises WaitTimeoutError: the work goes on
+        (a timeout never cancels a call or put; docs/embedding.md).
+        """
         try:
             self._check_thread()
             future = asyncio.run_coroutine_threadsafe(coro, self._loop())
@@ -221,11 +240,21 @@ class ThreadedProcess:
             ) from None
         except concurrent.futures.TimeoutError:
             if not future.done():
-                future.cancel()
-                raise WaitTimeoutError(
-                    f"{self.process.name}: {what} did not finish in {timeout}s"
-                ) from None
+                future.add_done_callback(self._report_late(what))
+                raise still_running(f"{self.process.name}: {what}", timeout) from None
             raise  # the work itself raised a TimeoutError
+
+    @staticmethod
+    def _report_late(what: str) -> Callable[[concurrent.futures.Future[Any]], None]:
+        def report(future: concurrent.futures.Future[Any]) -> None:
+            if not future.cancelled() and future.exception() is not None:
+                log.warning(
+                    "%s, which outlived its timeout, failed: %s",
+                    what,
+                    future.exception(),
+                )
+
+        return report
 
     def _run_future(self, coro: Coroutine[Any, Any, T]) -> concurrent.futures.Future[T]:
         try:

@@ -9,17 +9,30 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import inspect
 import itertools
+import logging
 import threading
+import weakref
 from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from malcolm.core import AbortedError, Attribute, Subscription, WaitTimeoutError
+from malcolm.core import (
+    AbortedError,
+    Attribute,
+    BadValueError,
+    Subscription,
+    WaitTimeoutError,
+)
+from malcolm.core.errors import still_running
+from malcolm.core.threads import call_threadsafe, marshalling
 
 from .views import FieldView
 
 if TYPE_CHECKING:
     from malcolm.core import Process
+
+log = logging.getLogger(__name__)
 
 Target = FieldView | Attribute | tuple[str, str]
 
@@ -54,6 +67,11 @@ class Task:
 
     Subscriptions and futures made through a task live until ``stop()``,
     which the controller calls on abort, disable and reset.
+
+    Timeouts follow one rule (docs/embedding.md): a timeout stops the caller
+    waiting and raises WaitTimeoutError saying the operation goes on; it
+    never cancels a put or a call. ``when_matches`` waits change nothing, so
+    a wait that gives up drops them.
     """
 
     def __init__(
@@ -66,6 +84,8 @@ class Task:
         self.part = part
         self._on_progress = on_progress
         self._futures: set[asyncio.Future[Any]] = set()
+        #: the when_matches futures among them (dropped by a wait that gives up)
+        self._waits: weakref.WeakSet[asyncio.Future[Any]] = weakref.WeakSet()
         self._subs: dict[int, Subscription] = {}
         self._ids = itertools.count(1)
 
@@ -73,7 +93,10 @@ class Task:
     async def put(
         self, target: Any, value: Any = None, timeout: float | None = None
     ) -> None:
-        """Put and wait for completion; a dict puts many at once."""
+        """Put and wait for completion; a dict puts many at once.
+
+        After ``timeout`` seconds raises WaitTimeoutError; the put goes on.
+        """
         futures = self.put_async(target, value)
         await self.wait_all(futures, timeout=timeout)
 
@@ -86,36 +109,102 @@ class Task:
 
     def _track(self, fut: asyncio.Future[Any]) -> asyncio.Future[Any]:
         self._futures.add(fut)
-        fut.add_done_callback(self._futures.discard)
+        fut.add_done_callback(self._done)
         return fut
 
+    def _done(self, fut: asyncio.Future[Any]) -> None:
+        self._futures.discard(fut)
+        if not fut.cancelled() and fut.exception() is not None:
+            # retrieved here, so that one nobody waits for is not reported as
+            # "never retrieved"; whoever waits for it still gets it
+            log.debug("%s: %r failed: %s", self.part, fut, fut.exception())
+
     async def wait_all(self, *futures: Any, timeout: float | None = None) -> list[Any]:
-        """Wait for futures (or lists/dicts of them); the first error is raised."""
+        """Wait for futures (or lists/dicts of them); the first error is raised.
+
+        After ``timeout`` seconds raises WaitTimeoutError: puts and calls go
+        on, ``when_matches`` waits among them are dropped. If the caller is
+        cancelled (abort), what it waited for is cancelled too.
+        """
         flat = _flatten(futures)
         if not flat:
             return []
+        flat = [
+            f if asyncio.isfuture(f) else self._track(asyncio.ensure_future(f))
+            for f in flat
+        ]
         try:
-            return list(await asyncio.wait_for(asyncio.gather(*flat), timeout=timeout))
-        except TimeoutError:
-            raise WaitTimeoutError(
-                f"{self.part}: {len(flat)} operation(s) not done after {timeout} s"
-            ) from None
+            done, pending = await asyncio.wait(
+                flat, timeout=timeout, return_when=asyncio.FIRST_EXCEPTION
+            )
+        except asyncio.CancelledError:
+            for f in flat:
+                f.cancel()
+            raise
+        for f in flat:  # the first error, in the order they were given
+            if f.done() and not f.cancelled() and f.exception() is not None:
+                raise f.exception()  # type: ignore[misc]
+        if pending:
+            self._give_up(pending)
+            raise still_running(
+                f"{self.part}: {len(pending)} of {len(flat)} operation(s)", timeout
+            )
+        return [f.result() for f in flat]
+
+    def _give_up(self, pending: Iterable[asyncio.Future[Any]]) -> None:
+        """Drop the waits among ``pending``; log what the others end with."""
+        for f in pending:
+            if f in self._waits:
+                f.cancel()
+            else:
+                f.add_done_callback(self._report_late)
+
+    def _report_late(self, fut: asyncio.Future[Any]) -> None:
+        if not fut.cancelled() and fut.exception() is not None:
+            log.warning(
+                "%s: an operation that outlived its timeout failed: %s",
+                self.part,
+                fut.exception(),
+            )
 
     # ---- waiting for values
     def when_matches(
         self, target: Any, value: Any, timeout: float | None = None
     ) -> asyncio.Future[Any]:
-        """A future done when the field equals value (or value(field) is true)."""
+        """A future done when the field equals value (or value(field) is true).
+
+        Values are compared as the attribute holds them (its meta's canonical
+        form: arrays are tuples, tables dicts of tuples), so lists, tuples and
+        table rows or columns all match; a predicate gets that form too. A
+        ``value`` that does not fit the attribute raises BadValueError now.
+        """
         path = target_path(target)
+        attr = self.process.get_block(path[0]).attribute(path[1])
+        if callable(value):
+            match = value
+        else:
+            want = attr.validate(value)
+
+            def match(v: Any) -> bool:
+                return bool(v == want)
+
         loop = asyncio.get_running_loop()
         fut: asyncio.Future[Any] = loop.create_future()
-        match = value if callable(value) else (lambda v: v == value)
         last: list[Any] = [None]
 
-        def on_value(v: Any) -> None:
+        def on_value(plain: Any) -> None:
+            try:
+                v = attr.meta.validate(plain)
+            except BadValueError:
+                v = plain  # e.g. the field was replaced by another kind
             last[0] = v
-            if not fut.done() and match(v):
-                fut.set_result(v)
+            if fut.done():
+                return
+            try:
+                if match(v):
+                    fut.set_result(v)
+            except Exception as e:  # a predicate that raises ends the wait
+                fut.set_exception(e)
 
         sub = self.process.subscribe([*path, "value"], on_value, delta=False)
 
@@ -133,7 +222,9 @@ class Task:
                 if not fut.done():
                     fut.cancel()
 
-        return self._track(asyncio.ensure_future(waiter()))
+        waiting = self._track(asyncio.ensure_future(waiter()))
+        self._waits.add(waiting)
+        return waiting
 
     # ---- subscriptions
     def subscribe(self, target: Any, callback: Callable[..., Any], *args: Any) -> int:
@@ -142,7 +233,7 @@ class Task:
 
         def on_value(v: Any) -> None:
             result = callback(v, *args)
-            if asyncio.iscoroutine(result):
+            if inspect.isawaitable(result):
                 self._track(asyncio.ensure_future(result))
 
         sid = next(self._ids)
@@ -194,32 +285,37 @@ class BlockingTask:
         self.process = task.process
         self.cancelled = False
         self._inflight: set[concurrent.futures.Future[Any]] = set()
+        self._waits: weakref.WeakSet[concurrent.futures.Future[Any]] = weakref.WeakSet()
         self._callbacks = concurrent.futures.ThreadPoolExecutor(
             max_workers=1, thread_name_prefix=f"{task.part}-callbacks"
         )
 
     def call(self, func: Callable[..., Any], *args: Any) -> Any:
-        """Run ``func`` in this thread as part of this task (views use it)."""
+        """Run ``func`` in this thread as part of this task (views use it).
+
+        Changes ``func`` makes to block state (``attr.set_value(...)``) are
+        run on the process's loop while this thread waits for them.
+        """
         previous = current_blocking_task()
         _current.task = self
+        loop = self.process.loop
+        assert loop is not None
         try:
-            return func(*args)
+            with marshalling(loop, self._run_on_loop):
+                return func(*args)
         finally:
             _current.task = previous
 
+    def _run_on_loop(self, func: Callable[..., Any], *args: Any) -> Any:
+        return self._wait(self._submit(lambda: func(*args)))
+
     def _submit(self, coro_fn: Callable[[], Any]) -> concurrent.futures.Future[Any]:
+        """Run ``coro_fn()`` on the loop (awaiting what it returns)."""
         if self.cancelled:
             raise AbortedError(f"{self.part}: the phase was cancelled")
         loop = self.process.loop
         assert loop is not None
-
-        async def runner() -> Any:
-            result = coro_fn()
-            if asyncio.isfuture(result) or asyncio.iscoroutine(result):
-                return await result
-            return result
-
-        fut = asyncio.run_coroutine_threadsafe(runner(), loop)
+        fut = call_threadsafe(loop, coro_fn)
         self._inflight.add(fut)
         fut.add_done_callback(self._inflight.discard)
         return fut
@@ -246,20 +342,29 @@ class BlockingTask:
         return self._submit(lambda: self._task.put(target, value))
 
     def wait_all(self, *futures: Any, timeout: float | None = None) -> list[Any]:
+        """Block until all are done; the timeout rule is the async Task's."""
         flat = _flatten(futures)
-        done, pending = concurrent.futures.wait(flat, timeout=timeout)
+        done, pending = concurrent.futures.wait(
+            flat, timeout=timeout, return_when=concurrent.futures.FIRST_EXCEPTION
+        )
+        for f in flat:  # the first error, in the order they were given
+            if f.done() and not f.cancelled() and f.exception() is not None:
+                raise f.exception()  # type: ignore[misc]
         if pending:
-            for fut in pending:  # as the async Task does: nothing left behind
-                fut.cancel()
-            raise WaitTimeoutError(
-                f"{self.part}: {len(pending)} operation(s) not done after {timeout} s"
+            for f in pending:  # waits change nothing: drop them; puts go on
+                if f in self._waits:
+                    f.cancel()
+            raise still_running(
+                f"{self.part}: {len(pending)} of {len(flat)} operation(s)", timeout
             )
         return [self._wait(f) for f in flat]
 
     def when_matches(
         self, target: Any, value: Any, timeout: float | None = None
     ) -> concurrent.futures.Future[Any]:
-        return self._submit(lambda: self._task.when_matches(target, value, timeout))
+        fut = self._submit(lambda: self._task.when_matches(target, value, timeout))
+        self._waits.add(fut)
+        return fut
 
     def subscribe(self, target: Any, callback: Callable[..., Any], *args: Any) -> int:
         def in_thread(v: Any, *a: Any) -> None:

@@ -2,13 +2,19 @@
 
 A view does not own data: it names ``(mri, field)`` and reads through the
 process. ``view.xml.put(v)`` works from a worker thread (plain ``def`` hook
-functions) and is awaitable as ``await view.xml.put_async(v)`` on the loop.
+functions) and is awaitable as ``await view.xml.put_async(v)`` on the loop;
+``view.configure(...)`` (or ``.call(params, timeout)``) calls a method. A
+timeout stops the wait, never the put or call (docs/embedding.md).
 """
 
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
+
+from malcolm.core.errors import AbortedError, still_running
 
 if TYPE_CHECKING:
     from malcolm.core import Process
@@ -18,6 +24,25 @@ def _blocking_task() -> Any:
     from .task import current_blocking_task  # task.py imports this module
 
     return current_blocking_task()
+
+
+def _result(
+    fut: concurrent.futures.Future[Any],
+    timeout: float | None,
+    what: str,
+    btask: Any = None,
+) -> Any:
+    """Wait for ``fut``; a timeout stops the wait, never the operation."""
+    try:
+        return fut.result(timeout)
+    except concurrent.futures.TimeoutError:
+        if fut.done():
+            raise  # the operation itself raised a TimeoutError
+        raise still_running(what, timeout) from None
+    except concurrent.futures.CancelledError:
+        if btask is None:
+            raise
+        raise AbortedError(f"{btask.part}: the phase was cancelled") from None
 
 
 def _in_loop(process: Process) -> bool:
@@ -44,38 +69,47 @@ class FieldView:
         return self.process.get_block(self.mri).attribute(self.name).value
 
     def put(self, value: Any, timeout: float | None = None) -> None:
-        """Blocking put from a worker thread (waits for completion)."""
-        if _in_loop(self.process):
-            raise RuntimeError(
-                f"{self.mri}.{self.name}.put() blocks: use 'await ...put_async()'"
-                " or task.put() on the event loop"
-            )
-        assert self.process.loop is not None
+        """Blocking put from a worker thread (waits for completion).
+
+        After ``timeout`` seconds raises WaitTimeoutError; the put goes on.
+        """
+        self._check_thread("put")
         btask = _blocking_task()
         if btask is not None:  # in a hook function: cancelled with its phase
             btask.put(self.path, value, timeout)
             return
-        fut = asyncio.run_coroutine_threadsafe(
-            asyncio.wait_for(self.process.put(self.path, value), timeout),
-            self.process.loop,
-        )
-        fut.result()
+        fut = self.process.call_threadsafe(self.process.put, self.path, value)
+        _result(fut, timeout, f"put {self.mri}.{self.name}")
 
     async def put_async(self, value: Any) -> None:
         await self.process.put(self.path, value)
 
     def __call__(self, **params: Any) -> Any:
-        """Call a method from a worker thread."""
-        assert self.process.loop is not None
+        """Call a method from a worker thread; returns what it returns."""
+        return self.call(params)
+
+    def call(
+        self, params: Mapping[str, Any] | None = None, timeout: float | None = None
+    ) -> Any:
+        """Call a method from a worker thread with a dict of parameters.
+
+        After ``timeout`` seconds raises WaitTimeoutError; the call goes on.
+        """
+        self._check_thread("call")
+        params = dict(params or {})
         btask = _blocking_task()
         if btask is not None:  # in a hook function: cancelled with its phase
-            return btask._wait(
-                btask._submit(lambda: self.process.post(self.path, params))
+            fut = btask._submit(lambda: self.process.post(self.path, params))
+            return _result(fut, timeout, f"{self.mri}.{self.name}()", btask)
+        fut = self.process.call_threadsafe(self.process.post, self.path, params)
+        return _result(fut, timeout, f"{self.mri}.{self.name}()")
+
+    def _check_thread(self, what: str) -> None:
+        if _in_loop(self.process):
+            raise RuntimeError(
+                f"{self.mri}.{self.name}.{what}() blocks: on the event loop use"
+                " 'await ...put_async()', task.put() or process.post()"
             )
-        fut = asyncio.run_coroutine_threadsafe(
-            self.process.post(self.path, params), self.process.loop
-        )
-        return fut.result()
 
     def __hash__(self) -> int:
         return hash((self.mri, self.name))

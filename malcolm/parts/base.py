@@ -6,7 +6,7 @@ import inspect
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from malcolm.core import Attribute, MapMeta, Meta, Method, MethodMeta
+from malcolm.core import Alarm, Attribute, MapMeta, Meta, Method, MethodMeta
 from malcolm.fsm import phases_of
 from malcolm.hooks import BlockView
 
@@ -37,11 +37,12 @@ class PartRegistrar:
         meta: Meta,
         value: Any = None,
         put: Callable[[Any], Any] | None = None,
+        alarm: Alarm = Alarm.ok,
     ) -> Attribute:
         """Add an attribute; ``put`` (if given) handles external puts."""
         if put is not None:
             meta.writeable = True
-        attr = Attribute(name, meta, value, put_handler=put)
+        attr = Attribute(name, meta, value, alarm=alarm, put_handler=put)
         self.controller.block.add(attr)
         self.fields.append(name)
         return attr
@@ -60,6 +61,12 @@ class PartRegistrar:
         self.controller.block.add(method)
         self.fields.append(name)
         return method
+
+    def report_health(self, message: str | None) -> None:
+        """Report a problem of this part (a lost connection...), or None once
+        it is over: the block's ``health`` shows it as ``part: message``
+        (see ``Controller.set_part_health``). The state does not change."""
+        self.controller.set_part_health(self.part.name, message)
 
     def add_configure_arg(
         self, name: str, meta: Meta, default: Any = None, required: bool = False

@@ -1,25 +1,26 @@
-"""Soft stand-ins for Channel Access attributes, and gui groups.
+"""Channel Access attributes (``ca.*`` sections), and gui groups.
 
 A ``ca.Double`` (``ca.LongString``, ``ca.Enum``...) section of a definition
-makes one attribute bound to a PV. Until the Channel Access adapter exists,
-the attribute is bound to a :class:`SoftChannel` instead: an in-memory
-channel that keeps the PV names (``pv``, the readback ``rbv``) as metadata
-and whose readback follows the demand as soon as it is put. Nothing talks
-to an IOC.
+makes one attribute bound to a PV pair: read from the readback ``rbv``,
+written (if writeable) to ``pv``. The channel comes from the ``ca`` backend
+the process chose (:mod:`malcolm.io.backends`; ``soft``, in memory, until
+the Channel Access adapter exists): see :class:`~malcolm.parts.channel.
+ChannelPart` for connecting, alarms, health and puts, and docs/channels.md.
 
-- ``writeable: true`` lets the attribute be put (the put goes to the
-  channel, then the attribute takes the channel's readback);
+- ``writeable: true`` lets the attribute be put (a put with completion to
+  ``pv``, then the attribute takes what a get of the readback says);
 - ``widget: textinput`` adds the tag ``widget:textinput`` (without one, a
   writeable attribute gets the kind's usual input widget and a read-only
   one ``widget:textupdate``);
 - ``group: configuration`` adds the tag ``group:configuration``;
 - ``rbv`` names the readback PV; ``rbv_suffix`` makes it ``pv + suffix``;
   by default the readback is ``pv`` itself. One of ``pv``/``rbv`` is needed.
-- numbers take ``low``/``high`` (limits), ``units`` and ``precision``;
+- numbers take ``low``/``high`` (limits), ``units`` and ``precision``; what
+  the definition leaves out is taken from the channel when it reports it;
 - ``ca.Enum`` takes ``choices`` (a list of labels). Without them it has
-  ``["0", "1"]``, the two states of a bo/bi record with no labels set: the
-  soft channel cannot ask an IOC for the record's labels, which the Channel
-  Access adapter will read instead.
+  ``["0", "1"]``, the two states of a bo/bi record with no labels set, until
+  the channel reports the record's labels (a soft record reports none
+  unless defined with them);
 - ``ca.Table`` takes ``columns``: column name -> type (``Long``/``Int``,
   ``Double``/``Float``, ``String``, ``Bool``), in order; its value is a table
   (one array per column), empty at first.
@@ -47,8 +48,10 @@ from malcolm.core import (
     TableMeta,
 )
 from malcolm.core.metas import ArrayMeta
+from malcolm.io import ChannelInfo, SoftChannel
 
 from .base import Part, PartRegistrar
+from .channel import ChannelPart
 
 __all__ = [
     "CABoolPart",
@@ -60,38 +63,14 @@ __all__ = [
     "CAStringPart",
     "CATablePart",
     "GroupPart",
-    "SoftChannel",
+    "SoftChannel",  # malcolm.io.soft's, once defined here
 ]
 
 
-class SoftChannel:
-    """An in-memory PV pair: a put sets the demand and, at once, the readback."""
+class CAPart(ChannelPart):
+    """One attribute bound to a ``ca`` channel; subclasses choose the meta."""
 
-    def __init__(self, pv: str | None, rbv: str | None, value: Any = None) -> None:
-        self.pv = pv
-        self.rbv = rbv
-        self.value = value
-        self.puts = 0
-
-    def put(self, value: Any) -> Any:
-        """Write ``value`` to the demand PV; returns the readback."""
-        if self.pv is None:
-            raise ValueError(f"{self.rbv} is a readback: it has no PV to put to")
-        self.value = value
-        self.puts += 1
-        return self.value
-
-    def get(self) -> Any:
-        """The readback value."""
-        return self.value
-
-    def __repr__(self) -> str:
-        return f"SoftChannel(pv={self.pv!r}, rbv={self.rbv!r})"
-
-
-class CAPart(Part):
-    """One attribute bound to a (soft) channel; subclasses choose the meta."""
-
+    transport = "ca"
     #: widget used when the section names none and the attribute is writeable
     input_widget: ClassVar[str] = "textinput"
 
@@ -107,7 +86,6 @@ class CAPart(Part):
         writeable: bool = False,
         label: str = "",
     ) -> None:
-        super().__init__(name)
         if not name.isidentifier():
             raise ValueError(f"attribute name {name!r} is not an identifier")
         if pv is None and rbv is None:
@@ -118,16 +96,15 @@ class CAPart(Part):
             raise ValueError("give 'rbv' or 'rbv_suffix', not both")
         if writeable and pv is None:
             raise ValueError("a writeable attribute needs a 'pv' to put to")
+        assert rbv is not None
+        super().__init__(name, rbv, pv if writeable else None, writeable)
         self.pv = pv
         self.rbv = rbv
         self.description = description
         self.widget = widget or (self.input_widget if writeable else "textupdate")
         self.group = group
-        self.writeable = bool(writeable)
         self.label = label
         self.meta = self.make_meta(description, self.tags(), self.writeable, label)
-        self.channel = SoftChannel(pv, rbv, self.meta.default())
-        self.attr: Attribute | None = None
 
     def tags(self) -> list[str]:
         tags = [f"widget:{self.widget}"]
@@ -140,17 +117,8 @@ class CAPart(Part):
     ) -> Meta:
         raise NotImplementedError
 
-    def setup(self, registrar: PartRegistrar) -> None:
-        self.attr = registrar.add_attribute(
-            self.name,
-            self.meta,
-            self.channel.get(),
-            put=self.put if self.writeable else None,
-        )
-
-    def put(self, value: Any) -> None:
-        assert self.attr is not None
-        self.attr.set_value(self.channel.put(value))
+    def attribute_meta(self) -> Meta:
+        return self.meta
 
 
 class _NumberPart(CAPart):
@@ -191,6 +159,31 @@ class _NumberPart(CAPart):
     ) -> Meta:
         return NumberMeta(
             self.dtype, description, tags, writeable, label, display=self.display
+        )
+
+    def meta_from_info(self, meta: Meta, info: ChannelInfo) -> Meta | None:
+        """Limits, units and precision the channel reports, where the
+        definition gave none."""
+        assert isinstance(meta, NumberMeta)
+        found: dict[str, Any] = {}
+        if info.limits is not None and not {"limitLow", "limitHigh"} & set(
+            self.display
+        ):
+            found["limitLow"], found["limitHigh"] = info.limits
+        if info.units is not None and "units" not in self.display:
+            found["units"] = info.units
+        if info.precision is not None and "precision" not in self.display:
+            found["precision"] = info.precision
+        if not found:
+            return None
+        display = {**meta.display, **found}
+        return NumberMeta(
+            meta.dtype,
+            meta.description,
+            meta.tags,
+            meta.writeable,
+            meta.label,
+            display=display,
         )
 
 
@@ -248,6 +241,8 @@ class CAEnumPart(CAPart):
         label: str = "",
         choices: Sequence[str] | None = None,
     ) -> None:
+        #: whether the definition named the choices (else the channel may)
+        self.choices_given = choices is not None
         if choices is None:
             choices = ["0", "1"]
         if not isinstance(choices, list | tuple) or not all(
@@ -265,6 +260,16 @@ class CAEnumPart(CAPart):
         self, description: str, tags: Sequence[str], writeable: bool, label: str
     ) -> Meta:
         return ChoiceMeta(self.choices, description, tags, writeable, label)
+
+    def meta_from_info(self, meta: Meta, info: ChannelInfo) -> Meta | None:
+        """The channel's enum strings, where the definition gave no choices."""
+        if self.choices_given or not info.choices:
+            return None
+        if tuple(info.choices) == tuple(getattr(meta, "choices", ())):
+            return None
+        return ChoiceMeta(
+            info.choices, meta.description, meta.tags, meta.writeable, meta.label
+        )
 
 
 #: ``ca.Table`` column types -> the column's array meta

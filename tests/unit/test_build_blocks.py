@@ -101,8 +101,12 @@ def test_soft_channels_take_puts_of_writeable_attributes():
     assert block.acquire.value == "1"
     assert block.configuration.value == "collapsed"
     parts = process.get_controller("DRV").parts
-    assert parts["xml"].channel.get() == "<xml/>" and parts["xml"].channel.puts == 1
-    assert parts["exposure"].channel.puts == 0
+    records = process.backends["ca"].records  # the soft backend's PVs
+    assert parts["xml"].channel.write == "BL:Filename"
+    assert records["BL:Filename"].value == "<xml/>"
+    assert records["BL:Filename"].puts == 1
+    assert parts["exposure"].channel.write is None  # read-only: no put channel
+    assert records["BL:Exposure_RBV"].puts == 0
 
 
 def test_manager_example_makes_its_child_and_attaches_its_client():
