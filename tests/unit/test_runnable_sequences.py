@@ -149,8 +149,11 @@ def test_pause_when_not_running_lands_armed_and_clamps():
         # a seek put in Armed
         await p.put(["DET", "completedSteps"], 4)
         assert (b.state.value, steps(b)) == ("Armed", (6, 4, 6))
-        # clamps to the scan
+        # clamps to the last step of the scan, as the reference does
         await p.post(["DET", "pause"], {"lastGoodStep": 99})
+        assert (b.state.value, steps(b)) == ("Armed", (6, 5, 6))
+        # a seek put to the end finishes the scan
+        await p.put(["DET", "completedSteps"], 6)
         assert (b.state.value, steps(b)) == ("Finished", (6, 6, 6))
         # from Finished back into the scan
         await p.post(["DET", "pause"], {"lastGoodStep": 2})
