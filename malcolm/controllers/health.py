@@ -35,6 +35,7 @@ class Health:
     tasks: dict[str, Task]
     _part_problems: dict[str, str]
     _fault_message: str | None
+    _faulting: bool
     _background: set[asyncio.Future[Any]]
 
     if TYPE_CHECKING:  # from the other parts of Controller
@@ -50,6 +51,7 @@ class Health:
     def _init_health(self) -> None:
         self._part_problems = {}
         self._fault_message = None
+        self._faulting = False
         self._background = set()
 
     @property
@@ -71,7 +73,10 @@ class Health:
         if t is None:
             return
         if not t.phases:
-            self.move(t)
+            try:
+                self.move(t)
+            finally:
+                self._faulting = False
             return
         fut = asyncio.ensure_future(self._take_fault(t))
         self._background.add(fut)
@@ -79,10 +84,9 @@ class Health:
 
     def _enter_fault(self, message: str) -> Transition | None:
         """The synchronous half of a fault; the transition to take, if any."""
-        if self._fault_message is not None and self.model.is_state(
-            self.current, "fault"
-        ):
-            return None  # already in Fault: the first reason stays
+        in_fault = self.model.is_state(self.current, "fault")
+        if self._faulting or (in_fault and self._fault_message is not None):
+            return None  # already (going) in Fault: the first reason stays
         log.warning("%s: fault: %s", self.mri, message)
         for task in self.tasks.values():
             task.stop()
@@ -90,23 +94,27 @@ class Health:
         self.health.set_value(message, alarm=Alarm.major(message))
         self.cancel_now(message)
         try:
-            return self.choose("fault")
+            t = self.choose("fault")
         except NotAllowedError:
             return None  # no fault move from here (Disabled): health says why
+        self._faulting = True  # until the move: a second fault waits its turn
+        return t
 
     async def _take_fault(self, t: Transition) -> None:
-        self.on_transition(t)
-        for phase in t.phases:
-            try:
-                await self.run_phase(phase)
-            except Exception as e:  # the block goes to Fault all the same
-                log.warning("%s: %s while going to Fault", self.mri, describe(e))
-                self._fault_message = f"{self._fault_message}; then {describe(e)}"
-                self.health.set_value(
-                    self._fault_message, alarm=Alarm.major(self._fault_message)
-                )
-        if self.current == t.source:
-            self.move(t)
+        try:
+            self.on_transition(t)
+            for phase in t.phases:
+                try:
+                    await self.run_phase(phase)
+                except Exception as e:  # the block goes to Fault all the same
+                    log.warning("%s: %s while going to Fault", self.mri, describe(e))
+                    reason = f"{self._fault_message}; then {describe(e)}"
+                    self._fault_message = reason
+                    self.health.set_value(reason, alarm=Alarm.major(reason))
+            if self.current == t.source:
+                self.move(t)
+        finally:
+            self._faulting = False
 
     def set_health_ok(self) -> None:
         """Forget the fault's reason; health shows the parts' problems, or OK."""

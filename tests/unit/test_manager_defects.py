@@ -279,3 +279,42 @@ def test_validate_waits_for_no_configure():
         assert steps(controller.block) == (4, 0, 4)
 
     run(scenario)
+
+
+# ---- item 7: what a Follower row expects after the manager's own change
+
+
+def test_the_managers_own_change_of_a_followed_attribute_is_held_until_reset():
+    """C.counter follows the manager's export Delta (C.delta). The manager's
+    own put of C.counter is held; anyone else's is drift; reset follows
+    Delta again."""
+
+    async def scenario():
+        process, manager = manager_of_counter(threaded=False)
+        await process.start()
+        await process.put(
+            ["MGR", "exports"],
+            {"name": ["Delta"], "source": ["C.delta"], "description": [""]},
+        )
+        await process.post(["MGR", "reset"])  # a table edit disables
+        await process.put(
+            ["MGR", "followers"], {"name": ["C.counter"], "source": ["Delta"]}
+        )
+        await process.post(["MGR", "reset"])
+        child = process.get_block("CHILD")
+        assert child.counter.value == 1.0  # it follows Delta
+        await process.post(["MGR", "configure"], {"generator": compound(("x", 2))})
+        assert (manager.current, manager.health.value) == ("Armed", "OK")
+        assert child.counter.value == 5.0  # the manager's own put
+        await process.put(["CHILD", "counter"], 7.0)
+        assert manager.current == "Fault"
+        assert manager.health.value == (
+            "MGR: C.counter follows Delta: expected 5.0 (set by the manager;"
+            " Delta is 1.0), but it is 7.0"
+        )
+        await process.post(["MGR", "reset"])
+        assert (manager.current, manager.health.value) == ("Ready", "OK")
+        assert child.counter.value == 1.0
+        await process.stop()
+
+    run(scenario)
