@@ -252,3 +252,36 @@ def test_a_fault_runs_the_phases_the_model_puts_on_it(model, fault_phase_fails):
         assert ("the fault phase failed too" in health) == fault_phase_fails
 
     run(scenario)
+
+
+USER_PART = """
+from malcolm.fsm import RunnableDevice
+from malcolm.parts import Part
+
+
+class Runner(Part):
+    @RunnableDevice.Configure
+    async def configure(self, task, device):
+        raise AssertionError("check must not run it")
+"""
+
+
+def test_check_matches_a_user_parts_phases_by_role_as_serve_does(
+    model, tmp_path, monkeypatch, capsys
+):
+    """`malcolm check` of a user part on a renamed model: its Configure is the
+    model's QConfigure, as when the block is built."""
+    from malcolm.cli import main
+    from malcolm.config.build import build_definition
+
+    (tmp_path / "roles_user_part.py").write_text(USER_PART)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    definition = tmp_path / "d.yaml"
+    definition.write_text(
+        f"controller.RunnableController:\n    model: {model.path}\n"
+        "parts.roles_user_part.Runner:\n    name: r\n"
+    )
+    assert main(["check", str(definition)]) == 0, capsys.readouterr()
+    process = build_definition(definition, {}, "BOX")
+    controller = process.get_controller("BOX")
+    assert [h.part for h in controller.hooks["QConfigure"]] == ["r"]
