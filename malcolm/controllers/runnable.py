@@ -227,7 +227,11 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
 
         async def adopt() -> None:
             # the parameters as the parts validated them; still resting
-            if device.params != params:
+            # (compared by identity: a tweak is a new value; arrays have no ==)
+            tweaked = device.params.keys() != params.keys() or any(
+                device.params[k] is not v for k, v in params.items()
+            )
+            if tweaked:
                 plan = plan_scan(self.mri, device.params, self.simultaneous_axes.value)
                 device.points = plan.points
             else:

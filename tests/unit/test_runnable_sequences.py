@@ -394,3 +394,20 @@ def test_a_scanspec_spec_configures_the_same_scan():
         assert steps(c.block) == (4, 2, 6)
 
     run(scenario)
+
+
+def test_configure_takes_the_scan_as_the_parts_validated_it():
+    class InnerAxisOnly(Part):
+        @RunnableDevice.Validate
+        async def validate(self, task, device):
+            if device.params.get("axesToMove") != ["x"]:
+                return {"axesToMove": ["x"]}
+
+    async def scenario():
+        p, c, _ = await make(InnerAxisOnly("inner"), SimDetectorPart("det"))
+        await p.post(["DET", "configure"], {"generator": compound(("y", 3), ("x", 2))})
+        # a run does the x line only, as the part asked
+        assert (c.block.state.value, steps(c.block)) == ("Armed", (2, 0, 6))
+        assert c.device.params["axesToMove"] == ["x"]
+
+    run(scenario)
