@@ -182,26 +182,22 @@ class Interpreter:
     # ---- which calls and puts are allowed now
     def _update_writeable(self, before: str | None = None) -> None:
         """Set the writeable flags of the model's calls and puts for the
-        current state (only those that differ from ``before``, if given)."""
+        current state (only those whose rule differs from ``before``'s, if
+        given), in one delta."""
         state = self._state
         if before is None:
-            changes = [(n, self._allowed(n, state)) for n in self._restricted()]
+            fields = self._fields_of(
+                [(n, self._allowed(n, state)) for n in self._restricted()]
+            )
         else:
-            changes = self._changes_between(before, state)
-        block = self.block
-        methods = self.model.methods
+            fields = self._fields_between(before, state)
         notes: list[list[Any]] = []
-        for name, allowed in changes:
-            if name in block:
-                fld = block[name]
-                if (
-                    isinstance(fld, Method) == (name in methods)
-                    and fld.meta.writeable != allowed
-                ):
-                    fld.meta.writeable = allowed
-                    notes.append([[name, "meta", "writeable"], allowed])
+        for fld, allowed in fields:
+            if fld.meta.writeable != allowed:
+                fld.meta.writeable = allowed
+                notes.append([[fld.name, "meta", "writeable"], allowed])
         if notes:  # one delta for the move, not one per field
-            block.notify(notes)
+            self.block.notify(notes)
 
     def _restricted(self) -> list[str]:
         return [*self.model.methods, *self.model.attributes]
@@ -212,18 +208,35 @@ class Interpreter:
             return self.model.allows(name, state)
         return self.model.put_allowed(name, state)
 
-    def _changes_between(self, before: str, after: str) -> list[tuple[str, bool]]:
-        """(name, allowed in ``after``) for each call or put whose rule
-        differs between the two states (worked out once per pair)."""
-        cache: dict[tuple[str, str], list[tuple[str, bool]]] = self.__dict__.setdefault(
-            "_writeable_changes", {}
-        )
-        key = (before, after)
-        found = cache.get(key)
-        if found is None:
-            found = cache[key] = [
-                (n, self._allowed(n, after))
-                for n in self._restricted()
-                if self._allowed(n, before) != self._allowed(n, after)
-            ]
+    def _fields_of(self, rules: list[tuple[str, bool]]) -> list[tuple[Any, bool]]:
+        """The block's fields the ``(name, allowed)`` rules are about."""
+        block = self.block
+        methods = self.model.methods
+        found = []
+        for name, allowed in rules:
+            if name in block:
+                fld = block[name]
+                if isinstance(fld, Method) == (name in methods):
+                    found.append((fld, allowed))
         return found
+
+    def _fields_between(self, before: str, after: str) -> list[tuple[Any, bool]]:
+        """(field, allowed in ``after``) for each call or put whose rule
+        differs between the two states; worked out once per pair and kept
+        while the block's fields stay the same ones."""
+        cache: dict[tuple[str, str], tuple[int, list[tuple[Any, bool]]]]
+        cache = self.__dict__.setdefault("_writeable_fields", {})
+        block = self.block
+        count = len(block.meta.fields)
+        kept = cache.get((before, after))
+        if kept is not None and kept[0] == count:
+            if all(fld.block is block for fld, _ in kept[1]):
+                return kept[1]
+        rules = [
+            (n, self._allowed(n, after))
+            for n in self._restricted()
+            if self._allowed(n, before) != self._allowed(n, after)
+        ]
+        fields = self._fields_of(rules)
+        cache[(before, after)] = (count, fields)
+        return fields
