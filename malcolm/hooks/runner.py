@@ -93,32 +93,48 @@ async def _run_alone(
     timeout: float | None,
 ) -> dict[str, Any]:
     """One async hook: awaited in the caller's task (no sibling to run
-    beside it), with the same outcomes as the general case."""
+    beside it), with the same outcomes as the general case.
+
+    The timeout is kept as ``asyncio.timeout`` keeps it (a timer that
+    cancels this task; its cancellation is taken back when it fired), with
+    one timer handle and no context manager per phase."""
     args = (tasks[hook.part], device)[: hook.nargs]
-    deadline = asyncio.timeout(timeout)
+    me = asyncio.current_task()
+    assert me is not None
+    expired = False
+    handle: asyncio.TimerHandle | None = None
+    if timeout is not None:
+        cancelling = me.cancelling()
+
+        def expire() -> None:
+            nonlocal expired
+            expired = True
+            me.cancel()
+
+        handle = asyncio.get_running_loop().call_later(timeout, expire)
     try:
-        if timeout is None:
-            result = await hook.func(*args)
-        else:
-            async with deadline:
-                result = await hook.func(*args)
+        result = await hook.func(*args)
     except asyncio.CancelledError:
-        me = asyncio.current_task()
-        if me is not None and me.cancelling():
+        if expired and me.uncancel() <= cancelling:
+            raise PhaseTimeoutError(
+                f"{phase} phase timed out after {timeout} s waiting for"
+                f" part(s) {hook.part}"
+            ) from None
+        if me.cancelling():
             raise  # the phase itself was cancelled (abort, pause, disable)
         # cancelled from inside (a stopped task's future)
         raise PhaseError(
             phase, hook.part, AbortedError(f"{hook.part} was cancelled")
         ) from None
-    except TimeoutError as e:
-        if deadline.expired():
-            raise PhaseTimeoutError(
-                f"{phase} phase timed out after {timeout} s waiting for"
-                f" part(s) {hook.part}"
-            ) from None
-        raise PhaseError(phase, hook.part, e) from e
     except Exception as e:
+        if expired:
+            me.uncancel()
         raise PhaseError(phase, hook.part, e) from e
+    finally:
+        if handle is not None:
+            handle.cancel()
+    if expired:  # it finished although the timer fired: not a timeout
+        me.uncancel()
     return {hook.part: result}
 
 
