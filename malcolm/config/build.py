@@ -189,9 +189,9 @@ class _Builder:
         factory = item.factory
         if not isinstance(factory, type):
             return
-        phases = controller.model.phases
         for phase, func in hook_functions(factory):
-            if phase not in phases:
+            # as add_part matches them: by name, else by the builtin role
+            if controller.resolve_phase(phase) is None:
                 self.problems.add(
                     item.file,
                     item.line,

@@ -1,41 +1,41 @@
 """RunnableController: configure / run / pause / seek / resume / abort over a scan.
 
-Step maths lives here; the order of work lives in the model. A run does
-the steps of the innermost dimensions in ``axesToMove`` (cut short at the
-next breakpoint) and ends Armed, or Finished after the last step.
+The order of work lives in the model; the step maths in :mod:`.scan_steps`;
+what configure() takes in :mod:`.configure_args`. A run does the steps of
+the innermost dimensions in ``axesToMove`` (cut short at the next
+breakpoint) and ends Armed, or Finished after the last step.
 """
 
 from __future__ import annotations
 
 import asyncio
 from collections.abc import Mapping
-from itertools import accumulate
+from dataclasses import replace
 from typing import Any
 
-from malcolm.core import (
-    AbortedError,
-    BadValueError,
-    MalcolmError,
-    MapMeta,
-    Meta,
-    MethodMeta,
-    NotAllowedError,
-    NumberArrayMeta,
-    NumberMeta,
-    StringArrayMeta,
-)
+from malcolm.core import BadValueError, NumberMeta, StringArrayMeta
 from malcolm.core.generator import GeneratorMeta
-from malcolm.scan import ScanPoints, scan_points
-from malcolm.scan.errors import GeneratorError
+from malcolm.fsm import Transition
+from malcolm.hooks import Hook
+from malcolm.scan import ScanPoints
 
-from .base import Device
+from .configure_args import ConfigureArgs, checked_generator_meta
+from .device import Device
 from .manager import ManagerController
+from .pausing import PauseAndSeek
+from .scan_steps import ScanPlan, plan_scan
 
 MAX_VALIDATE_ROUNDS = 10
 
 
-class RunnableController(ManagerController):
-    """Interprets the ``runnable_device`` model (and models that extend it)."""
+class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
+    """Interprets the ``runnable_device`` model (and models that extend it).
+
+    The controller's part of each move is found by the roles of the states
+    it joins (never their names): ``configuring -> armed`` starts the scan's
+    steps, ``running -> post_run`` is the run (progress is tracked while the
+    block is ``running``), ``post_run -> armed`` sets up the next run.
+    """
 
     model_name = "runnable_device"
 
@@ -55,68 +55,22 @@ class RunnableController(ManagerController):
             "simultaneousAxes",
             StringArrayMeta("Axes that may move together in a run", writeable=True),
         )
-        self._configure_takes: dict[str, Meta] = {
-            "generator": GeneratorMeta("The scan to do", writeable=True),
-            "axesToMove": StringArrayMeta(
-                "Axes a single run moves (the inner ones)", writeable=True
-            ),
-            "breakpoints": NumberArrayMeta(
-                "int32", "Run lengths the scan is cut into", writeable=True
-            ),
-        }
-        self._configure_required = ["generator"]
-        self._configure_defaults: dict[str, Any] = {"breakpoints": ()}
-        self.points: ScanPoints | None = None
-        self._steps_per_run = 1
-        self._breakpoint_ends: list[int] = []
-        self._progress: dict[str, int] = {}
+        self._init_configure_args(checked_generator_meta(GeneratorMeta))
+        self.plan: ScanPlan | None = None
         self._paused = False
         self._run_inner: asyncio.Task[Any] | None = None
         self._resume: asyncio.Future[bool] | None = None
         self._seek_op: asyncio.Task[Any] | None = None
+        # progress of the run in progress: where it started, what each part
+        # reported, and how many hooks of each part are still working
+        self._run_start = 0
+        self._reported: dict[str, int] = {}
+        self._working: dict[str, int] = {}
 
-    # ---- configure arguments (parts add their own)
-    def add_configure_arg(
-        self, name: str, meta: Meta, default: Any, required: bool
-    ) -> None:
-        if name in self._configure_takes:
-            raise ValueError(f"{self.mri}: configure already takes {name!r}")
-        meta.writeable = True
-        self._configure_takes[name] = meta
-        if required:
-            self._configure_required.append(name)
-        elif default is not None:
-            self._configure_defaults[name] = default
-        for call in ("configure", "validate"):
-            if call in self.block:
-                self.block.remove(call)
-                self.add_call(call)
-
-    def remove_configure_arg(self, name: str) -> None:
-        if name in self._configure_takes:
-            del self._configure_takes[name]
-            self._configure_defaults.pop(name, None)
-            if name in self._configure_required:
-                self._configure_required.remove(name)
-            for call in ("configure", "validate"):
-                if call in self.block:
-                    self.block.remove(call)
-                    self.add_call(call)
-
-    def _configure_meta(self, description: str, returns: bool) -> MethodMeta:
-        takes = MapMeta(dict(self._configure_takes), list(self._configure_required))
-        return MethodMeta(
-            takes,
-            MapMeta(dict(self._configure_takes)) if returns else MapMeta(),
-            dict(self._configure_defaults),
-            description=description,
-        )
-
-    def method_meta_configure(self) -> MethodMeta:
-        return self._configure_meta("Validate the parameters, set up the scan", False)
-
-    def method_meta_validate(self) -> MethodMeta:
-        return self._configure_meta("Check parameters; returns them as tweaked", True)
+    @property
+    def points(self) -> ScanPoints | None:
+        """The configured scan's points."""
+        return self.plan.points if self.plan is not None else None
 
     # ---- guards named in the model
     def scan_complete(self) -> bool:
@@ -127,50 +81,45 @@ class RunnableController(ManagerController):
 
     # ---- step maths
     def next_configured(self, completed: int) -> int:
-        total = self.total.value
-        spr = max(1, self._steps_per_run)
-        end = min(total, (completed // spr + 1) * spr)
-        for b in self._breakpoint_ends:
-            if b > completed:
-                end = min(end, b)
-                break
-        return end
+        """Where a run that starts at step ``completed`` stops."""
+        return self.plan.next_configured(completed) if self.plan else 0
 
-    def _prepare(self, params: Mapping[str, Any], device: Device | None = None) -> None:
-        """Check the scan; set it up, or only on ``device`` (for validate)."""
-        generator = params["generator"]
-        points = generator if isinstance(generator, ScanPoints) else None
-        try:
-            points = points or scan_points(generator)
-            axes = params.get("axesToMove")
-            if axes is None or "axesToMove" not in params:
-                axes = self.simultaneous_axes.value or None
-            spr = points.steps_per_run(list(axes) if axes is not None else None)
-        except (GeneratorError, ValueError) as e:
-            raise BadValueError(f"{self.mri}.configure: {e}") from None
-        breakpoints = [int(b) for b in params.get("breakpoints") or ()]
-        if breakpoints and sum(breakpoints) != points.size:
-            raise BadValueError(
-                f"{self.mri}.configure.breakpoints: they add up to {sum(breakpoints)}"
-                f" but the scan has {points.size} points"
-            )
-        if any(b <= 0 for b in breakpoints):
-            raise BadValueError(f"{self.mri}.configure.breakpoints: must be positive")
-        if device is None:
-            device = self.device
-            self.points = points
-            self._steps_per_run = spr
-            self._breakpoint_ends = list(accumulate(breakpoints))
-        device.points = points
-        device.params = dict(params)
+    def on_transition(self, t: Transition) -> None:
+        super().on_transition(t)
+        move = (self.role(t.source), self.role(t.dest))
+        if move == ("configuring", "armed"):
+            self._paused = False
+            self.total.set_value(self.plan.total if self.plan else 0)
+            self.completed.set_value(0)
+            self.configured.set_value(self.next_configured(0))
+        elif move == ("running", "post_run"):
+            self._run_start = self.completed.value
+            self._reported = {}
+            self._working = {}
+            self.device.stepsToDo = self.configured.value - self.completed.value
+        elif move == ("post_run", "armed"):
+            self.configured.set_value(self.next_configured(self.completed.value))
 
-    # ---- phases: the controller's part of each
+    def on_moved(self, t: Transition) -> None:
+        if (self.role(t.source), self.role(t.dest)) == ("running", "post_run"):
+            self._working = {}
+            self.completed.set_value(self.configured.value)
+        super().on_moved(t)
+
+    # ---- phases
     async def run_phase(
         self, phase: str, device: Device | None = None
     ) -> dict[str, Any]:
         device = device or self.device
-        if phase != "Validate":
-            return await super().run_phase(phase, device)
+        if phase == self.model.phase_for("validate"):
+            return await self._validate_rounds(phase, device)
+        if self.role() == "running":
+            hooks = self._tracked(self.hooks_of(phase))
+            return await self.run_hooks(phase, hooks, device)
+        return await super().run_phase(phase, device)
+
+    async def _validate_rounds(self, phase: str, device: Device) -> dict[str, Any]:
+        """Run the validate phase until no part changes the parameters."""
         for _ in range(MAX_VALIDATE_ROUNDS):
             results = await super().run_phase(phase, device)
             changed = {}
@@ -180,7 +129,7 @@ class RunnableController(ManagerController):
                 if not isinstance(tweaks, Mapping):
                     raise BadValueError(
                         f"{self.mri}: part {part!r} returned {tweaks!r} from"
-                        " Validate; expected a dict of changed parameters"
+                        f" {phase}; expected a dict of changed parameters"
                     )
                 for k, v in tweaks.items():
                     if device.params.get(k) != v:
@@ -193,55 +142,111 @@ class RunnableController(ManagerController):
             " validate rounds"
         )
 
-    async def before_phase(self, phase: str) -> None:
-        if phase == "PreConfigure":
-            self._paused = False
-            self.total.set_value(self.points.size if self.points else 0)
-            self.completed.set_value(0)
-            self.configured.set_value(self.next_configured(0))
-        elif phase == "PreRun":
-            # every part with a hook in the run's phases reports progress
-            run = self.model.transitions_for("done", "Running")
-            phases = {ph for t in run for ph in t.phases}
-            start = self.completed.value
-            self._progress = {
-                h.part: start for ph in phases for h in self.hooks.get(ph, ())
-            }
-            self.device.stepsToDo = self.configured.value - self.completed.value
-        elif phase == "PostRunArmed":
-            self.configured.set_value(self.next_configured(self.completed.value))
+    # ---- progress: the slowest part still working
+    def _tracked(self, hooks: list[Hook]) -> list[Hook]:
+        """``hooks``, each telling the controller when it has returned."""
+        loop = asyncio.get_running_loop()
+        tracked = []
+        for hook in hooks:
+            self._working[hook.part] = self._working.get(hook.part, 0) + 1
+            tracked.append(replace(hook, func=self._reporting(hook, loop)))
+        return tracked
 
-    def move(self, trigger: str, dest: str | None = None) -> None:
-        leaving = self.current
-        super().move(trigger, dest)
-        if leaving == "Running" and self.current == "PostRun":
-            self.completed.set_value(self.configured.value)
+    def _reporting(self, hook: Hook, loop: asyncio.AbstractEventLoop) -> Any:
+        func, part = hook.func, hook.part
+        working = self._working  # this run's: a later run has its own
+        if hook.is_async:
+
+            async def returns(*args: Any) -> Any:
+                result = await func(*args)
+                self._hook_returned(part, working)
+                return result
+
+        else:
+
+            def returns(*args: Any) -> Any:
+                result = func(*args)
+                loop.call_soon_threadsafe(self._hook_returned, part, working)
+                return result
+
+        return returns
+
+    def _hook_returned(self, part: str, working: dict[str, int]) -> None:
+        if working is not self._working or part not in working:
+            return
+        working[part] -= 1
+        if working[part] <= 0:
+            del working[part]
+            self._show_progress()
 
     def _on_progress(self, part: str, steps: int) -> None:
-        if self.current != "Running":
+        if self.role() != "running" or part not in self._working:
             return
-        if part not in self._progress:
+        self._reported[part] = steps
+        self._show_progress()
+
+    def _show_progress(self) -> None:
+        if not self._working:
             return
-        self._progress[part] = steps
-        done = min(self._progress.values())
+        done = overall_progress(
+            {p: self._reported.get(p, self._run_start) for p in self._working}
+        )
         if self.completed.value < done <= self.configured.value:
             self.completed.set_value(done)
 
     # ---- calls
     async def do_validate(self, **params: Any) -> dict[str, Any]:
         """Check parameters; returns them as the parts would tweak them."""
-        # on a device of its own: validating must not touch the armed scan
+
+        async def validate() -> dict[str, Any]:
+            # on a device of its own: validating must not touch the armed scan
+            device = self._device_for(params)
+            phase = self.model.phase_for("validate")
+            if phase is not None:
+                await self.run_phase(phase, device)
+            plan_scan(self.mri, device.params, self.simultaneous_axes.value)
+            return dict(device.params)
+
+        return await self.operation("validate", validate())
+
+    def _device_for(
+        self, params: Mapping[str, Any], plan: ScanPlan | None = None
+    ) -> Device:
+        """A device for hooks checking ``params`` (BadValueError if bad)."""
+        if plan is None:
+            plan = plan_scan(self.mri, params, self.simultaneous_axes.value)
         device = Device(self)
-        self._prepare(params, device)
-        await self.run_phase("Validate", device)
-        return dict(device.params)
+        device.params = dict(params)
+        device.points = plan.points
+        return device
 
     async def do_configure(self, **params: Any) -> None:
         """Validate the parameters and set up the scan; ends Armed."""
+        first = plan_scan(self.mri, params, self.simultaneous_axes.value)
+        device = self._device_for(params, first)  # BadValueError: nothing changed
+
+        async def adopt() -> None:
+            # the parameters as the parts validated them; still resting
+            # (compared by identity: a tweak is a new value; arrays have no ==)
+            tweaked = device.params.keys() != params.keys() or any(
+                device.params[k] is not v for k, v in params.items()
+            )
+            if tweaked:
+                plan = plan_scan(self.mri, device.params, self.simultaneous_axes.value)
+                device.points = plan.points
+            else:
+                plan = first
+            self.plan = plan
 
         async def configure() -> None:
-            self._prepare(params)
-            await self.fire("configure")
+            before = self.device
+            self.device = device
+            try:
+                await self.fire("configure", before_move=adopt)
+            except BaseException:
+                if self.device is device and not self.is_busy():
+                    self.device = before  # refused: nothing changed
+                raise
             await self.settle()
 
         await self.operation("configure", configure())
@@ -266,137 +271,19 @@ class RunnableController(ManagerController):
             self._resume = loop.create_future()
             await self._resume
 
-    async def do_pause(
-        self, lastGoodStep: int | None = None, completedSteps: int | None = None
-    ) -> None:
-        """Go back to a step; from Running land Paused, otherwise Armed."""
-        steps = lastGoodStep if lastGoodStep is not None else completedSteps
-        if steps is None:
-            steps = self.completed.value
-        steps = max(0, min(int(steps), self.total.value))
-        self._check_not_seeking("pause")
-        if self._claim is not None:
-            raise NotAllowedError(
-                f"{self.mri}: cannot pause while {self._claim_name} is in progress"
-                f" (state {self.current})"
-            )
-        try:
-            if self.current == "Running":
-                inner = self._run_inner
-                if inner is None or inner.done():
-                    raise NotAllowedError(
-                        f"{self.mri}: cannot pause a run that is not running yet"
-                        f" (state {self.current})"
-                    )
-                self._paused = True
-                self.choose("pause")
-                inner.cancel()
-                await asyncio.wait({inner})
-                # what the cancelled run phase subscribed to goes with it
-                for task in self.tasks.values():
-                    task.stop()
-                await self._seek("pause", steps)
-            else:
-                if self.current == "Armed" and self.busy_with() == "run":
-                    raise NotAllowedError(
-                        f"{self.mri}: cannot pause a run that is not running yet"
-                        f" (state {self.current})"
-                    )
-                await self._seek("pause", steps)
-        except (NotAllowedError, BadValueError, AbortedError):
-            raise
-        except Exception as e:
-            await self.go_fault(e)
-            raise
-
-    def method_meta_pause(self) -> MethodMeta:
-        step = "Last good step; the scan goes back to it"
-        return MethodMeta(
-            MapMeta(
-                {
-                    "lastGoodStep": NumberMeta("int32", step, writeable=True),
-                    "completedSteps": NumberMeta("int32", step, writeable=True),
-                }
-            ),
-            description="Pause: go back to lastGoodStep (alias completedSteps)",
-        )
-
-    async def put_completedSteps(self, steps: int) -> None:  # noqa: N802
-        if not 0 <= steps <= self.total.value:
-            raise BadValueError(
-                f"{self.mri}.completedSteps: {steps} is outside [0, {self.total.value}]"
-            )
-        try:
-            await self._seek("seek", steps)
-        except (NotAllowedError, AbortedError):
-            raise
-        except Exception as e:
-            await self.go_fault(e)
-            raise
-
-    async def _seek(self, trigger: str, steps: int) -> None:
-        self.choose(trigger)  # fail early if not allowed here
-        self._check_not_seeking(trigger)
-        # beside a run only once it runs (or waits Paused); never beside an
-        # abort or disable taking over, nor any other operation
-        beside_run = self._op_name == "run" and self.current in ("Running", "Paused")
-        busy = self.busy_with()
-        if busy is not None and not (busy == "run" and beside_run):
-            raise NotAllowedError(
-                f"{self.mri}: cannot {trigger} while {busy} is in progress"
-                f" (state {self.current})"
-            )
-
-        async def seek() -> None:
-            await self.fire(trigger)  # the Pause phase (from Running) runs first
-            # the target is known before Seeking chooses where to go next
-            self._seek_to = None
-            self.completed.set_value(steps)
-            self.configured.set_value(self.next_configured(steps))
-            await self.settle()
-
-        # a task of its own, so that abort and disable can cancel it
-        self._seek_op = op = asyncio.ensure_future(seek())
-        await asyncio.wait({op})
-        if op.cancelled():
-            raise AbortedError(f"{self.mri}: {trigger} was aborted")
-        op.result()
-
-    def _check_not_seeking(self, name: str) -> None:
-        if self._seek_op is not None and not self._seek_op.done():
-            raise NotAllowedError(
-                f"{self.mri}: cannot {name} while a pause or seek is in progress"
-                f" (state {self.current})"
-            )
-
-    def side_operations(self) -> list[asyncio.Future[Any]]:
-        return [f for f in (self._seek_op, self._run_inner) if f is not None]
-
-    async def go_fault(self, error: BaseException | str) -> None:
-        await super().go_fault(error)
-        resume = self._resume
-        if resume is not None and not resume.done():
-            # a paused run() fails with the fault instead of waiting forever
-            if not isinstance(error, BaseException):
-                error = MalcolmError(error)
-            resume.set_exception(error)
-
-    async def do_resume(self) -> None:
-        """Continue a paused scan."""
-        self._check_not_seeking("resume")
-        self._paused = False
-        self.move("resume")
-        if self._resume is not None and not self._resume.done():
-            self._resume.set_result(True)
-
     async def do_abort(self) -> None:
         """Stop whatever is running; a pending run() fails. Ends Aborted."""
 
         async def abort() -> None:
-            for task in self.tasks.values():
-                task.stop()
+            self.stop_tasks()
             self._paused = False
             await self.fire("abort")
             await self.settle()
 
         await self.operation("abort", abort(), interrupt=True)
+
+
+def overall_progress(steps: Mapping[str, int]) -> int:
+    """The scan's progress from the steps each part still working reported:
+    the slowest part's."""
+    return min(steps.values())

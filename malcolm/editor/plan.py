@@ -31,6 +31,7 @@ from malcolm.editor.runtime import (
     FixedRuntime,
     FollowerRuntime,
     RunnableExportRuntime,
+    takes_configure_args,
 )
 from malcolm.parts.design import (
     DESIGN_KINDS,
@@ -74,7 +75,7 @@ def build_parts(manager: ManagerController, records: list[Any]) -> list[EditorPa
     made: list[EditorPart] = []
     exports: set[str] = set()
     export_cls = (
-        RunnableExportRuntime if "Configure" in manager.model.phases else ExportRuntime
+        RunnableExportRuntime if takes_configure_args(manager) else ExportRuntime
     )
     # fields, and a runnable manager's own configure() arguments
     own = set(manager.block) | set(getattr(manager, "_configure_takes", ()))

@@ -3,9 +3,17 @@
 - ``ExportRuntime``: a manager field mirroring a child attribute (or
   method), live; writes to it go to the child.
 - ``FollowerRuntime``: a child attribute set whenever a manager attribute
-  changes; any other change of the child is reported to the manager.
+  changes.
 - ``FixedRuntime``: a child attribute held at a saved value; written on
-  reset and load, any change reported.
+  reset and load.
+
+A change of a followed or fixed child attribute made by the manager itself
+(a put whose origin is the manager: its parts' Tasks, these parts' own
+writes) moves what the row expects to the new value, until the source
+changes again (a follower) or reset or load writes the design's value back;
+a change by anyone else (another client, the hardware) is reported to the
+manager, which goes to Fault if the row's attribute is not what it expects
+(docs/editor.md).
 """
 
 from __future__ import annotations
@@ -15,13 +23,17 @@ import copy
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from malcolm.controllers.writers import writing_as
 from malcolm.core import Attribute, BadValueError, Meta, Method, Subscription
-from malcolm.fsm import RunnableDevice, Stateful
+from malcolm.fsm import RunnableDevice, Stateful, phases_of
 from malcolm.hooks import Task
 from malcolm.parts.base import Part, PartRegistrar
 
 if TYPE_CHECKING:
     from malcolm.controllers.manager import ManagerController
+
+
+_UNSET: Any = object()
 
 
 def same(a: Any, b: Any) -> bool:
@@ -100,14 +112,26 @@ class EditorPart(Part):
         assert self.manager.process is not None
         self.pending += 1
         try:
-            await self.manager.process.put([mri, field], value)
+            with writing_as(self.manager.mri):
+                await self.manager.process.put([mri, field], value)
         finally:
             self.pending -= 1
         self.manager.verify(self)
 
+    def accept(self) -> None:
+        """The manager itself changed the child: the row now expects that."""
+
     def on_child_change(self, _value: Any) -> None:
-        if self.pending == 0:
+        mri, field = self.watched
+        if self.manager.child_writer(mri, field) == self.manager.mri:
+            self.accept()
+        elif self.pending == 0:
             self.manager.verify(self)
+
+    @property
+    def watched(self) -> tuple[str, str]:
+        """The child ``(mri, field)`` this row holds."""
+        raise NotImplementedError
 
 
 class ExportRuntime(EditorPart):
@@ -141,7 +165,7 @@ class ExportRuntime(EditorPart):
         self.attr = registrar.add_attribute(
             self.field, meta, target.value, put=self.put if writeable else None
         )
-        if writeable and "Configure" in self.manager.model.phases:
+        if writeable and takes_configure_args(self.manager):
             registrar.add_configure_arg(self.field, copy.deepcopy(meta), None)
 
     def attach(self) -> None:
@@ -165,6 +189,20 @@ class ExportRuntime(EditorPart):
         return await self.manager.process.post(
             [self.child_mri, self.child_field], params
         )
+
+
+def takes_configure_args(manager: ManagerController) -> bool:
+    """Whether the manager's ``configure()`` takes its exports as arguments:
+    it has the call, and the phases RunnableExportRuntime hooks."""
+    hooked = {
+        phase
+        for klass in RunnableExportRuntime.__mro__
+        for fn in vars(klass).values()
+        for phase in phases_of(fn)
+    }
+    return "configure" in manager.model.methods and all(
+        manager.resolve_phase(phase) is not None for phase in hooked
+    )
 
 
 class RunnableExportRuntime(ExportRuntime):
@@ -209,17 +247,33 @@ class FollowerRuntime(EditorPart):
                 f" cannot follow {source} ({type_of(source_meta)})"
             )
 
-    def expected(self) -> Any:
+        #: a value the manager itself gave the child, held until the source
+        #: changes or apply() (reset, load) follows the source again
+        self.held: Any = _UNSET
+
+    @property
+    def watched(self) -> tuple[str, str]:
+        return self.child_mri, self.child_field
+
+    def source_value(self) -> Any:
         return self.manager.block.attribute(self.source).value
+
+    def expected(self) -> Any:
+        """What the child should be: the source, or what the manager set."""
+        return self.source_value() if self.held is _UNSET else self.held
 
     def actual(self) -> Any:
         return self.manager.child_field(self.child_mri, self.child_field).value
+
+    def accept(self) -> None:
+        self.held = self.actual()
 
     def attach(self) -> None:
         self.watch(self.manager.mri, self.source, self.on_source)
         self.watch(self.child_mri, self.child_field, self.on_child_change)
 
     def on_source(self, value: Any) -> None:
+        self.held = _UNSET
         if self.manager.following and not same(value, self.actual()):
             self.pending += 1  # counted now: the child changes before the put ends
             fut = asyncio.ensure_future(self._follow(value))
@@ -230,7 +284,9 @@ class FollowerRuntime(EditorPart):
         try:
             await self.write(self.child_mri, self.child_field, value)
         except Exception as e:
-            self.manager.fault_now(f"{self.target} could not follow {self.source}: {e}")
+            self.manager.report_drift(
+                f"{self.target} could not follow {self.source}: {e}"
+            )
         finally:
             self.pending -= 1
             self.manager.verify(self)
@@ -239,12 +295,18 @@ class FollowerRuntime(EditorPart):
         expected, actual = self.expected(), self.actual()
         if same(expected, actual):
             return None
+        source = self.source_value()
+        why = ""
+        if not same(expected, source):
+            why = f" (set by the manager; {self.source} is {source!r})"
         return (
-            f"{self.target} follows {self.source}: expected {expected!r},"
+            f"{self.target} follows {self.source}: expected {expected!r}{why},"
             f" but it is {actual!r}"
         )
 
     async def apply(self) -> None:
+        """Follow the source again: write its value to the child."""
+        self.held = _UNSET
         if not same(self.expected(), self.actual()):
             await self.write(self.child_mri, self.child_field, self.expected())
 
@@ -266,21 +328,37 @@ class FixedRuntime(EditorPart):
         target = writeable_attribute(
             manager, self.child_mri, self.child_field, name, "fixed"
         )
+        #: the design's value
         self.value = target.validate(value)
+        #: what the row expects now: the design's value, or what the manager
+        #: itself gave the child since
+        self.expected = self.value
+
+    @property
+    def watched(self) -> tuple[str, str]:
+        return self.child_mri, self.child_field
 
     def actual(self) -> Any:
         return self.manager.child_field(self.child_mri, self.child_field).value
+
+    def accept(self) -> None:
+        self.expected = self.actual()
 
     def attach(self) -> None:
         self.watch(self.child_mri, self.child_field, self.on_child_change)
 
     def mismatch(self) -> str | None:
         actual = self.actual()
-        if same(self.value, actual):
+        if same(self.expected, actual):
             return None
-        return f"{self.target} is fixed at {self.value!r}, but it is {actual!r}"
+        why = ""
+        if not same(self.expected, self.value):
+            why = f" (set by the manager; the design has {self.value!r})"
+        return f"{self.target} is fixed at {self.expected!r}{why}, but it is {actual!r}"
 
     async def apply(self) -> None:
+        """Write the design's value back (reset and load use it)."""
+        self.expected = self.value
         if not same(self.value, self.actual()):
             await self.write(self.child_mri, self.child_field, self.value)
 

@@ -25,7 +25,25 @@ from malcolm.core import BadValueError
 from malcolm.parts.design import DESIGN_KINDS, Design, load_design
 
 _KIND_OF = {cls: kind for kind, cls in DESIGN_KINDS.items()}
-NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]*")
+#: longest design name: the file and its temporary name must fit in a
+#: file name (255 bytes on common file systems)
+MAX_NAME_LENGTH = 200
+
+
+def check_name(mri: str, name: Any) -> str:
+    """``name`` if it is a design name, else BadValueError saying why."""
+    if not isinstance(name, str) or not NAME.fullmatch(name):
+        raise BadValueError(
+            f"{mri}: {name!r} is not a design name (letters, digits, _ . -,"
+            " starting with a letter or digit)"
+        )
+    if len(name) > MAX_NAME_LENGTH:
+        raise BadValueError(
+            f"{mri}: a design name has at most {MAX_NAME_LENGTH} characters,"
+            f" not {len(name)} ({name[:20]}...)"
+        )
+    return name
 
 
 def dump_design(records: Iterable[Any]) -> str:
@@ -126,10 +144,8 @@ class DesignStore:
         return name in self._templates() and not (self.dir / f"{name}.yaml").exists()
 
     def path(self, name: str) -> Path:
-        if not NAME.match(name or ""):
-            raise BadValueError(
-                f"{self.mri}: {name!r} is not a design name (letters, digits, _ . -)"
-            )
+        """The file of design ``name`` (saved, else a template)."""
+        check_name(self.mri, name)
         saved = self.dir / f"{name}.yaml"
         if saved.exists():
             return saved
@@ -149,10 +165,7 @@ class DesignStore:
 
     def check_writable(self, name: str) -> Path:
         """Where ``save(name)`` writes; BadValueError for a bad or template name."""
-        if not NAME.match(name or ""):
-            raise BadValueError(
-                f"{self.mri}: {name!r} is not a design name (letters, digits, _ . -)"
-            )
+        check_name(self.mri, name)
         if name in self._templates():
             raise BadValueError(
                 f"{self.mri}: design {name!r} is a read-only template; save under"

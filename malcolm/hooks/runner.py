@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import contextvars
 import inspect
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -79,6 +80,64 @@ def executor() -> concurrent.futures.ThreadPoolExecutor:
     return _executor
 
 
+def _retrieve(fut: asyncio.Future[Any]) -> None:
+    if not fut.cancelled():
+        fut.exception()
+
+
+async def _run_alone(
+    phase: str,
+    hook: Hook,
+    tasks: Mapping[str, Task],
+    device: Any,
+    timeout: float | None,
+) -> dict[str, Any]:
+    """One async hook: awaited in the caller's task (no sibling to run
+    beside it), with the same outcomes as the general case.
+
+    The timeout is kept as ``asyncio.timeout`` keeps it (a timer that
+    cancels this task; its cancellation is taken back when it fired), with
+    one timer handle and no context manager per phase."""
+    args = (tasks[hook.part], device)[: hook.nargs]
+    me = asyncio.current_task()
+    assert me is not None
+    expired = False
+    handle: asyncio.TimerHandle | None = None
+    if timeout is not None:
+        cancelling = me.cancelling()
+
+        def expire() -> None:
+            nonlocal expired
+            expired = True
+            me.cancel()
+
+        handle = asyncio.get_running_loop().call_later(timeout, expire)
+    try:
+        result = await hook.func(*args)
+    except asyncio.CancelledError:
+        if expired and me.uncancel() <= cancelling:
+            raise PhaseTimeoutError(
+                f"{phase} phase timed out after {timeout} s waiting for"
+                f" part(s) {hook.part}"
+            ) from None
+        if me.cancelling():
+            raise  # the phase itself was cancelled (abort, pause, disable)
+        # cancelled from inside (a stopped task's future)
+        raise PhaseError(
+            phase, hook.part, AbortedError(f"{hook.part} was cancelled")
+        ) from None
+    except Exception as e:
+        if expired:
+            me.uncancel()
+        raise PhaseError(phase, hook.part, e) from e
+    finally:
+        if handle is not None:
+            handle.cancel()
+    if expired:  # it finished although the timer fired: not a timeout
+        me.uncancel()
+    return {hook.part: result}
+
+
 async def run_phase(
     phase: str,
     hooks: Sequence[Hook],
@@ -89,6 +148,8 @@ async def run_phase(
     """Run ``hooks`` concurrently; return ``{part: returned value}``."""
     if not hooks:
         return {}
+    if len(hooks) == 1 and hooks[0].is_async:
+        return await _run_alone(phase, hooks[0], tasks, device, timeout)
     loop = asyncio.get_running_loop()
     running: dict[asyncio.Future[Any], Hook] = {}
     blocking: list[BlockingTask] = []
@@ -101,12 +162,20 @@ async def run_phase(
             btask = BlockingTask(task)
             blocking.append(btask)
             args = (btask, device)[: hook.nargs]
-            fut = loop.run_in_executor(executor(), btask.call, hook.func, *args)
+            # the thread runs in a copy of this context (as a task would), so
+            # what it starts on the loop carries the same context variables
+            context = contextvars.copy_context()
+            fut = loop.run_in_executor(
+                executor(), context.run, btask.call, hook.func, *args
+            )
         running[fut] = hook
 
     def cancel_all() -> None:
         for fut in running:
             fut.cancel()
+            # what a cancelled hook raises while it stops is not the phase's
+            # error; retrieved so that asyncio does not report it as lost
+            fut.add_done_callback(_retrieve)
         for btask in blocking:
             btask.cancel()
 

@@ -468,6 +468,13 @@ class ControllerMachine(RuleBasedStateMachine):
             assert out.error is not None, out
             assert self.current == out.state, (out, self.states)
             return
+        ran_in = [state for p, state, _ in self.part.calls if p == phase][-1:]
+        if ran_in and not self.model.states[ran_in[0]].busy:
+            # a phase that runs before the block leaves a resting state can
+            # only refuse: nothing moved, so nothing faults (issue 7 item 8)
+            assert out.error is not None, out
+            assert self.current == out.state, (out, self.states)
+            return
         assert self.current == "Fault", (
             f"a part failure ({how} in {phase}) during {out} left the block"
             f" {self.current}, not Fault (path {self.states})"
@@ -767,6 +774,10 @@ class ManagerBase(ControllerMachine):
         return {
             "designs_dir": self.designs_dir,
             "phase_timeout": PHASE_TIMEOUT,
+            # long phases (a run) have no default timeout: give them one
+            "phase_timeouts": {
+                p: PHASE_TIMEOUT for p in self.model.phases_tagged("long")
+            },
             "model": self.model,
         }
 
@@ -1050,8 +1061,14 @@ class RunnableMachine(ManagerBase):
         self.check_sought(before, self.clamp_from(before, step))
 
     def clamp_from(self, before: dict[str, Any], n: int | None) -> int:
-        completed, _, total = before["steps"]
-        return completed if n is None else max(0, min(n, total))
+        """Where pause(n) goes, as the reference's pause does: a negative
+        step is the current one, one at or past the end the last step, and
+        a pause that lands Paused does not land on the end of the run."""
+        completed, configured, total = before["steps"]
+        step = completed if n is None or n < 0 else min(n, total - 1)
+        if before["state"] == "Paused" and step == configured:
+            step -= 1
+        return max(0, step)
 
     def check_sought(self, before: dict[str, Any], step: int) -> None:
         total = before["steps"][2]

@@ -149,8 +149,11 @@ def test_pause_when_not_running_lands_armed_and_clamps():
         # a seek put in Armed
         await p.put(["DET", "completedSteps"], 4)
         assert (b.state.value, steps(b)) == ("Armed", (6, 4, 6))
-        # clamps to the scan
+        # clamps to the last step of the scan, as the reference does
         await p.post(["DET", "pause"], {"lastGoodStep": 99})
+        assert (b.state.value, steps(b)) == ("Armed", (6, 5, 6))
+        # a seek put to the end finishes the scan
+        await p.put(["DET", "completedSteps"], 6)
         assert (b.state.value, steps(b)) == ("Finished", (6, 6, 6))
         # from Finished back into the scan
         await p.post(["DET", "pause"], {"lastGoodStep": 2})
@@ -389,5 +392,22 @@ def test_a_scanspec_spec_configures_the_same_scan():
         assert took["type"] == "Product"
         await p.post(["DET", "run"])
         assert steps(c.block) == (4, 2, 6)
+
+    run(scenario)
+
+
+def test_configure_takes_the_scan_as_the_parts_validated_it():
+    class InnerAxisOnly(Part):
+        @RunnableDevice.Validate
+        async def validate(self, task, device):
+            if device.params.get("axesToMove") != ["x"]:
+                return {"axesToMove": ["x"]}
+
+    async def scenario():
+        p, c, _ = await make(InnerAxisOnly("inner"), SimDetectorPart("det"))
+        await p.post(["DET", "configure"], {"generator": compound(("y", 3), ("x", 2))})
+        # a run does the x line only, as the part asked
+        assert (c.block.state.value, steps(c.block)) == ("Armed", (2, 0, 6))
+        assert c.device.params["axesToMove"] == ["x"]
 
     run(scenario)

@@ -1,0 +1,128 @@
+"""The scan's step maths: which steps a run does, and where a pause lands.
+
+A run does the steps of the innermost dimensions whose axes are all in
+``axesToMove``, cut short at the next breakpoint. ``pause(lastGoodStep)``
+follows the reference (pymalcolm's RunnableController.pause): a negative
+(or no) step means the current one, a step at or past the end the last one,
+and a pause that leaves a run waiting (Paused) goes back one step if it would
+land on the end of the run, so that resume always has a step to do.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from itertools import accumulate
+from typing import Any
+
+from malcolm.core import BadValueError
+from malcolm.scan import ScanPoints, scan_points
+from malcolm.scan.errors import GeneratorError
+
+
+class PointsCache:
+    """The points of the last few generators given as plain data, so that
+    validate() then configure() (or a configure repeated) computes a scan's
+    points once. A generator matches an entry if it is equal to the copy the
+    entry keeps (so a caller changing its dict later changes nothing here)."""
+
+    def __init__(self, size: int = 4) -> None:
+        self.size = size
+        self._items: list[tuple[Any, ScanPoints]] = []
+
+    def find(self, generator: Any) -> ScanPoints | None:
+        """The points of an equal generator seen before, or None."""
+        if not isinstance(generator, Mapping):
+            return None
+        for i, (seen, points) in enumerate(self._items):
+            try:
+                equal = bool(seen == generator)
+            except (ValueError, TypeError):  # arrays compare element-wise
+                equal = False
+            if equal:
+                if i:
+                    self._items.insert(0, self._items.pop(i))
+                return points
+        return None
+
+    def points(self, generator: Any) -> ScanPoints:
+        """The points of ``generator`` (GeneratorError if it is not a scan)."""
+        if isinstance(generator, ScanPoints):
+            return generator
+        found = self.find(generator)
+        if found is None:
+            found = scan_points(generator)
+            if isinstance(generator, Mapping):
+                self._items.insert(0, (copy.deepcopy(generator), found))
+                del self._items[self.size :]
+        return found
+
+
+#: shared by every runnable controller of the process
+POINTS = PointsCache()
+
+
+@dataclass(frozen=True)
+class ScanPlan:
+    """A checked scan: its points and how it is cut into runs."""
+
+    points: ScanPoints
+    steps_per_run: int = 1
+    breakpoint_ends: tuple[int, ...] = field(default_factory=tuple)
+
+    @property
+    def total(self) -> int:
+        return self.points.size
+
+    def next_configured(self, completed: int) -> int:
+        """Where a run that starts at step ``completed`` stops."""
+        total = self.total
+        spr = max(1, self.steps_per_run)
+        end = min(total, (completed // spr + 1) * spr)
+        for b in self.breakpoint_ends:
+            if b > completed:
+                end = min(end, b)
+                break
+        return end
+
+
+def plan_scan(
+    mri: str, params: Mapping[str, Any], simultaneous_axes: Sequence[str]
+) -> ScanPlan:
+    """Check configure parameters: BadValueError naming what is wrong."""
+    try:
+        points = POINTS.points(params["generator"])
+        axes = params.get("axesToMove")
+        if axes is None:
+            axes = list(simultaneous_axes) or None
+        spr = points.steps_per_run(list(axes) if axes is not None else None)
+    except (GeneratorError, ValueError) as e:
+        raise BadValueError(f"{mri}.configure: {e}") from None
+    breakpoints = [int(b) for b in params.get("breakpoints") or ()]
+    if breakpoints and sum(breakpoints) != points.size:
+        raise BadValueError(
+            f"{mri}.configure.breakpoints: they add up to {sum(breakpoints)}"
+            f" but the scan has {points.size} points"
+        )
+    if any(b <= 0 for b in breakpoints):
+        raise BadValueError(f"{mri}.configure.breakpoints: must be positive")
+    return ScanPlan(points, spr, tuple(accumulate(breakpoints)))
+
+
+def pause_step(
+    requested: int | None,
+    completed: int,
+    configured: int,
+    total: int,
+    lands_paused: bool,
+) -> int:
+    """The step ``pause(lastGoodStep=requested)`` goes back to (the module's
+    rules); ``lands_paused``: a run is waiting (the block ends Paused)."""
+    if requested is None or requested < 0:
+        step = completed
+    else:
+        step = min(int(requested), total - 1)
+    if lands_paused and step == configured:
+        step -= 1
+    return max(0, step)
