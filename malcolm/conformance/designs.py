@@ -60,7 +60,12 @@ class DesignRig:
         self.loop = asyncio.new_event_loop()
         self.tmp = Path(tempfile.mkdtemp(prefix="malcolm-designs-"))
         self.process = Process(self.file.stem, designs_dir=str(self.tmp))
-        build_process(self.file, search_path, process=self.process)
+        try:
+            build_process(self.file, search_path, process=self.process)
+        except BaseException:
+            self.loop.close()
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            raise
         self.managers: list[ManagerController] = []
         #: a copied store directory -> the one it was copied from
         self.origins: dict[Path, Path] = {}

@@ -91,7 +91,12 @@ class LiveBlock:
         self.tmp = tempfile.mkdtemp(prefix="malcolm-conformance-")
         if issubclass(self.cls, ManagerController):
             kwargs["designs_dir"] = self.tmp
-        self.ctrl = self.cls(MRI, [*self.recorders, *extra_parts], **kwargs)
+        try:
+            self.ctrl = self.cls(MRI, [*self.recorders, *extra_parts], **kwargs)
+        except BaseException:
+            self.loop.close()
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            raise
         self.process = Process("conformance")
         self.process.add_controller(self.ctrl)
         self.seen = ""

@@ -48,6 +48,11 @@ def _line_of(stem: str, text: str) -> int:
             ["guard beam_on", "GuardsWithoutBeamOn"],
         ),
         (
+            "call_without_transition",
+            "  run: [Ready]",
+            ["method run is allowed in Ready", "no run transition leaves Ready"],
+        ),
+        (
             "phase_fired_by_nothing",
             "phases: [Calibrate]",
             ["transition calibrate Armed->Calibrating", "Calibrate", "nothing fires"],

@@ -10,6 +10,7 @@ function everywhere it is bound (the seams listed in docs/conformance.md).
 
 from __future__ import annotations
 
+import atexit
 import os
 import shutil
 import subprocess
@@ -29,6 +30,7 @@ def seed_models(edits: dict[str, tuple[str, str]]) -> Path:
     point MALCOLM_MODELS_DIR at the copy. A seed whose text is no longer in
     the model fails loudly rather than plant nothing."""
     copy = Path(tempfile.mkdtemp(prefix="malcolm-seeded-models-"))
+    atexit.register(shutil.rmtree, copy, True)
     shutil.copytree(ROOT / "models", copy, dirs_exist_ok=True)
     for name, (old, new) in edits.items():
         path = copy / name

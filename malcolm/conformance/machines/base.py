@@ -145,6 +145,11 @@ class ControllerMachine(RuleBasedStateMachine):
     def state_of(self, role: str) -> str:
         return self.model.state_for(role)
 
+    def at(self, state: str) -> str:
+        """Where the model declares ``state`` (file:line)."""
+        file, line = self.model.where("state", state)
+        return f"{file}:{line}" if line else file
+
     def run(self, coro: Any, timeout: float = CALL_TIMEOUT) -> Any:
         assert self.block is not None
         return self.block.run(coro, timeout)
@@ -549,12 +554,14 @@ class ControllerMachine(RuleBasedStateMachine):
         if self.block is None:
             return
         state = self.current
-        assert not self.model.states[state].busy, f"left busy in {state}"
+        assert not self.model.states[state].busy, (
+            f"{self.at(state)}: the block was left in busy state {state}"
+        )
         health = self.ctrl.health.value
         if self.role == "fault":
-            assert health != "OK"
+            assert health != "OK", f"{self.at(state)}: {state}, but health is OK"
         elif self.role != "disabled":
-            assert health == "OK", f"health {health!r} in {state}"
+            assert health == "OK", f"{self.at(state)}: health {health!r} in {state}"
         self.reap_pending_run()
 
     def reap_pending_run(self) -> None:
