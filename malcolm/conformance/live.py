@@ -87,7 +87,12 @@ class LiveBlock:
             recorder(name, self.log, lag, stepping, step_lag)
             for name, (lag, step_lag) in RECORDERS.items()
         ]
-        kwargs: dict[str, Any] = {"model": model, "phase_timeout": phase_timeout}
+        kwargs: dict[str, Any] = {
+            "model": model,
+            "phase_timeout": phase_timeout,
+            # long phases (a run) have no default timeout: give them this one
+            "phase_timeouts": {p: phase_timeout for p in model.phases_tagged("long")},
+        }
         self.tmp = tempfile.mkdtemp(prefix="malcolm-conformance-")
         if issubclass(self.cls, ManagerController):
             kwargs["designs_dir"] = self.tmp

@@ -293,6 +293,13 @@ class ControllerMachine(RuleBasedStateMachine):
         where = self.ran_in(phase)
         if where is not None and not self.model.transitions_for("fault", where):
             return  # no move to the fault state from there
+        if where is not None and not self.model.states[where].busy:
+            # a phase run before the block leaves a resting state: its
+            # failure is the call's error; the block either faults or (issue
+            # 7 item 8) stays where it was, since nothing moved
+            assert out.error is not None, f"{out} hid a part failure in {phase}"
+            if self.current == out.state:
+                return
         assert self.role == "fault", (
             f"a part failure ({how} in {phase}) during {out} left the block"
             f" {self.current}, not in its fault state (path {self.states})"

@@ -24,11 +24,25 @@ SESSION_CALLS = [
 ]
 
 
-def pause_target(completed: int, total: int, step: int | None) -> int:
-    """Where pause(lastGoodStep=step) goes: the current step if none is
-    given, else ``step`` clamped to the scan (what the controller does
-    today; issue 7 item 5 asks that a negative step mean the current one)."""
-    return completed if step is None else max(0, min(step, total))
+def pause_targets(
+    requested: int | None,
+    completed: int,
+    configured: int,
+    total: int,
+    lands_paused: bool,
+) -> set[int]:
+    """Where pause(lastGoodStep=requested) may land: the step clamped to
+    [0, total] (the controller before issue 7 item 5), or the reference's
+    rule (item 5: a negative step is the current one, one at or past the end
+    the last step, and a pause that lands Paused not on the end of the run)."""
+    clamped = completed if requested is None else max(0, min(requested, total))
+    if requested is None or requested < 0:
+        step = completed
+    else:
+        step = min(requested, total - 1)
+    if lands_paused and step == configured:
+        step -= 1
+    return {clamped, max(0, step)}
 
 
 class RunnableMachine(ManagerBase):
@@ -245,8 +259,15 @@ class RunnableMachine(ManagerBase):
         if out is None:
             return
         assert out.error is None, out
-        completed, _, total = before["steps"]
-        self.check_sought(before, "pause", pause_target(completed, total, step))
+        completed, configured, total = before["steps"]
+        paused = self.model.is_state(before["state"], "paused")
+        targets = pause_targets(step, completed, configured, total, paused)
+        landed = self.steps()[0]
+        assert landed in targets, (
+            f"pause({name}={step}) from {before['steps']} went to step {landed},"
+            f" not {' or '.join(map(str, sorted(targets)))}"
+        )
+        self.check_sought(before, "pause", landed)
 
     def check_sought(self, before: dict[str, Any], trigger: str, step: int) -> None:
         total = before["steps"][2]
