@@ -19,7 +19,7 @@ fails ends the script: what follows would only repeat it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NoReturn
 
 from malcolm.fsm import Model
 
@@ -85,9 +85,8 @@ class Script:
             return self.model.state_for(role)
         except KeyError as e:
             self.fail(f"the script needs a state with role {role!r}: {e}")
-            raise AssertionError from None  # not reached
 
-    def fail(self, problem: str) -> None:
+    def fail(self, problem: str) -> NoReturn:
         self.report.problems.append(problem)
         raise StopScript(problem)
 
@@ -128,7 +127,9 @@ class Script:
         those of the ``done`` moves until the block rests (unguarded ones)."""
         phases: list[str] = []
         ts = self.model.transitions_for(trigger, source)
-        while ts:
+        for _ in range(len(self.model.states)):  # done may cycle: stop somewhere
+            if not ts:
+                break
             t = ts[-1]
             phases += t.phases
             if not self.model.states[t.dest].busy:
@@ -136,7 +137,9 @@ class Script:
             ts = self.model.transitions_for("done", t.dest)
         return phases
 
-    def call(self, name: str, rests_in: str, error: bool = False, **params: Any):
+    def call(
+        self, name: str, rests_in: str, error: bool = False, **params: Any
+    ) -> Outcome:
         shown = ", ".join(f"{k}={v!r}" for k, v in params.items() if k != "generator")
         if "generator" in params:
             shown = ", ".join(filter(None, ["generator", shown]))
