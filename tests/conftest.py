@@ -69,3 +69,34 @@ def _no_dropped_futures_at_the_end():
         str(w.message) for w in caught if "never awaited" in str(w.message)
     ]
     assert not leaked, f"futures were dropped: {leaked}"
+
+
+# ---- design conformance options (docs/conformance.md) -----------------------
+# Here, not in tests/property/conftest.py, so that both `pytest tests ...`
+# and `pytest tests/property ...` accept them.
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("malcolm", "malcolm design conformance (tests/property)")
+    group.addoption(
+        "--malcolm-models",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="also check these model files, or every *.yaml in these directories:"
+        " design rules, and live controllers built from them (repeatable)",
+    )
+    group.addoption(
+        "--malcolm-designs",
+        action="append",
+        default=[],
+        metavar="PROCESS",
+        help="also check the designs of every manager this process file builds"
+        " (its saved designs and templates), on live managers (repeatable)",
+    )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    from malcolm.conformance.options import read_options
+
+    read_options(config)

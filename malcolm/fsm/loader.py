@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -14,8 +15,13 @@ from .reader import ModelReader
 
 
 def builtin_models_dir() -> Path:
-    """The builtin models: ``malcolm/models`` in an installed wheel, else the
-    ``models/`` directory next to the ``malcolm`` package (a checkout)."""
+    """The builtin models: ``$MALCOLM_MODELS_DIR`` when set (to run the
+    conformance tests on edited copies of the builtin models), else
+    ``malcolm/models`` in an installed wheel, else the ``models/`` directory
+    next to the ``malcolm`` package (a checkout)."""
+    override = os.environ.get("MALCOLM_MODELS_DIR")
+    if override:
+        return Path(override)
     import malcolm
 
     package = Path(malcolm.__file__).resolve().parent

@@ -1,89 +1,25 @@
 """Every model (builtin, or given with --malcolm-models) follows the design
-rules, and the machine built from it moves only as the model says."""
+rules (malcolm.fsm.check_model, docs/fsm.md "Design rules")."""
 
 from __future__ import annotations
 
-from functools import cache
 from pathlib import Path
 
-from hypothesis import given, settings
-from hypothesis import strategies as st
+import pytest
 
-from malcolm.fsm import Model, check_model, load_model, resolve_controller
-
-
-@cache
-def _model(path: Path) -> Model:
-    return load_model(path)
+from malcolm.conformance.testing import controller_or_fail, model_or_fail
+from malcolm.fsm import check_model
 
 
 def test_model_follows_design_rules(model_path: Path) -> None:
-    model = _model(model_path)
-    problems = check_model(model, guard_provider=resolve_controller(model))
-    assert problems == [], "\n".join(str(p) for p in problems)
+    model = model_or_fail(model_path)
+    controller = controller_or_fail(model)
+    problems = check_model(model, guard_provider=controller)
+    if problems:
+        pytest.fail("\n".join(str(p) for p in problems), pytrace=False)
 
 
 def test_every_state_has_an_entry_in_moves(model_path: Path) -> None:
-    model = _model(model_path)
+    model = model_or_fail(model_path)
     assert set(model.moves()) == set(model.states)
     assert model.initial in model.states
-
-
-class _Walker:
-    """Stands in for a controller: guards answer from ``answers``."""
-
-    def __init__(self, guards: set[str]) -> None:
-        self.answers: dict[str, bool] = {}
-        for guard in guards:
-            setattr(self, guard, lambda guard=guard: self.answers[guard])
-
-
-@settings(max_examples=60, deadline=None)
-@given(data=st.data())
-def test_random_walk_follows_the_model(model_path: Path, data: st.DataObject) -> None:
-    model = _model(model_path)
-    walker = _Walker(model.guards())
-    model.build_machine(walker)
-    moves = model.moves()
-    state = model.initial
-    assert walker.state == state
-    for _ in range(data.draw(st.integers(0, 60), label="steps")):
-        triggers = sorted(model.triggers_from(state))
-        if not triggers:
-            break
-        trigger = data.draw(st.sampled_from(triggers), label="trigger")
-        walker.answers = {
-            g: data.draw(st.booleans(), label=g) for g in sorted(model.guards())
-        }
-        expected = next(
-            (
-                t
-                for t in model.transitions_for(trigger, state)
-                if all(walker.answers[g] for g in t.guards)
-                and not any(walker.answers[g] for g in t.unless)
-            ),
-            None,
-        )
-        moved = getattr(walker, trigger)()
-        if expected is None:
-            assert not moved
-            assert walker.state == state
-        else:
-            assert moved
-            assert walker.state == expected.dest
-            assert expected.dest in moves[state]
-        state = walker.state
-        assert state in model.states
-
-
-@settings(max_examples=30, deadline=None)
-@given(data=st.data())
-def test_done_always_leaves_a_busy_state(model_path: Path, data: st.DataObject) -> None:
-    model = _model(model_path)
-    for state in sorted(model.busy_states()):
-        walker = _Walker(model.guards())
-        walker.answers = {
-            g: data.draw(st.booleans(), label=g) for g in sorted(model.guards())
-        }
-        model.build_machine(walker, initial=state)
-        assert walker.done(), f"done did not leave busy state {state}"

@@ -47,6 +47,16 @@ def _line_of(stem: str, text: str) -> int:
             "guards: [beam_on]",
             ["guard beam_on", "GuardsWithoutBeamOn"],
         ),
+        (
+            "call_without_transition",
+            "  run: [Ready]",
+            ["method run is allowed in Ready", "no run transition leaves Ready"],
+        ),
+        (
+            "phase_fired_by_nothing",
+            "phases: [Calibrate]",
+            ["transition calibrate Armed->Calibrating", "Calibrate", "nothing fires"],
+        ),
     ],
 )
 def test_design_rule_defect_is_named(stem: str, anchor: str, words: list[str]) -> None:
@@ -59,6 +69,35 @@ def test_design_rule_defect_is_named(stem: str, anchor: str, words: list[str]) -
     assert text.startswith(f"{problem.file}:{problem.line}: ")
     for word in words:
         assert word in text
+
+
+def test_a_missing_role_is_named() -> None:
+    (problem,) = _problems("missing_role")
+    assert str(problem) == (
+        f"{FIXTURES / 'missing_role.yaml'}: model MissingRole has no state with"
+        " role 'fault': every state must be able to move to Fault (rule 2)"
+    )
+
+
+def test_a_shadowed_transition_is_named() -> None:
+    """The unguarded done out of PostRun comes first: the guarded one after it
+    (and its phase PostRunReady) is never taken, and done's last transition
+    is guarded."""
+    problems = _problems("shadowed_transition")
+    line = _line_of("shadowed_transition", "guards: [scan_complete]")
+    first = _line_of("shadowed_transition", "phases: [PostRunArmed]")
+    assert [(p.line, p.message) for p in problems] == [
+        (
+            line,
+            "busy state PostRun: the last 'done' transition (done PostRun->Finished)"
+            " is guarded, so 'done' may leave PostRun nowhere",
+        ),
+        (
+            line,
+            "transition done PostRun->Finished (phases PostRunReady) is never"
+            f" taken: the unguarded done PostRun->Armed (line {first}) comes first",
+        ),
+    ]
 
 
 def test_undeclared_phase_is_a_load_error() -> None:

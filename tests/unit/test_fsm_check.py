@@ -13,11 +13,11 @@ GOOD = """\
 name: Small
 initial: Disabled
 states:
-  Disabled: {}
+  Disabled: {role: disabled}
   Ready: {}
   Busy: {busy: true}
-  Fault: {}
-  Disabling: {busy: true}
+  Fault: {role: fault}
+  Disabling: {busy: true, role: disabling}
 phases:
   Work: work
   Disable: let go
@@ -188,3 +188,101 @@ def test_resolve_controller_reports_broken_imports(tmp_path: Path, monkeypatch) 
         ModelError, match="small.yaml:25: cannot import broken_controller_mod"
     ):
         resolve_controller(model)
+
+
+# ---- roles, not names
+
+
+def test_rules_read_roles_not_state_names(tmp_path: Path) -> None:
+    text = (
+        GOOD.replace("Disabled", "Asleep")
+        .replace("Disabling", "LettingGo")
+        .replace("Fault", "Broken")
+    )
+    assert messages(tmp_path, text) == []
+    broken = text.replace(
+        "source: [Ready, Busy, LettingGo], dest: Broken",
+        "source: [Ready, Busy], dest: Broken",
+    )
+    assert messages(tmp_path, broken) == [
+        at(tmp_path, 8) + "state LettingGo has no move to Broken"
+    ]
+
+
+def test_a_role_a_rule_needs_is_named_when_missing(tmp_path: Path) -> None:
+    text = GOOD.replace("Fault: {role: fault}", "Fault: {}")
+    assert messages(tmp_path, text) == [
+        f"{tmp_path}/small.yaml: model Small has no state with role 'fault': "
+        "every state must be able to move to Fault (rule 2)"
+    ]
+
+
+# ---- transitions that are never taken
+
+
+def test_a_transition_after_an_unguarded_one_is_never_taken(tmp_path: Path) -> None:
+    text = GOOD.replace("guards: [ok], ", "")
+    assert messages(tmp_path, text) == [
+        at(tmp_path, 16) + "transition done Busy->Fault is never taken: the "
+        "unguarded done Busy->Ready (line 15) comes first"
+    ]
+
+
+NAP = "  - {trigger: nap, source: Ready, dest: Busy, phases: [Work]}\n"
+
+
+def with_nap(extra_method: str = "") -> str:
+    text = GOOD.replace("transitions:\n", "transitions:\n" + NAP)
+    if extra_method:
+        text = text.replace("methods:\n", f"methods:\n  {extra_method}\n")
+    return text
+
+
+def test_phases_on_a_transition_nothing_fires(tmp_path: Path) -> None:
+    (found,) = messages(tmp_path, with_nap())
+    assert found.startswith(
+        at(tmp_path, 13) + "transition nap Ready->Busy runs phases Work but "
+        "nothing fires it: 'nap' is not a trigger the controller fires; "
+        "no method nap is listed under methods"
+    )
+
+
+def test_a_call_fires_only_where_it_is_allowed(tmp_path: Path) -> None:
+    found = messages(tmp_path, with_nap("nap: [Busy]"))
+    assert (
+        at(tmp_path, 13)
+        + (
+            "transition nap Ready->Busy runs phases Work but nothing fires it: "
+            "'nap' is not a trigger the controller fires; method nap is not "
+            "allowed in Ready; no attribute put fires nap in Ready"
+        )
+        in found
+    )
+    assert messages(tmp_path, with_nap("nap: [Ready]")) == []
+
+
+def test_a_controller_must_implement_the_call(tmp_path: Path) -> None:
+    class Controller:  # looks like a controller: it exposes calls
+        def add_call(self, name: str) -> None: ...
+
+        def ok(self) -> bool:
+            return True
+
+    class Napper(Controller):
+        def do_nap(self) -> None: ...
+
+    class FiresNap(Controller):
+        fires = ("nap",)
+
+    text = with_nap("nap: [Ready]")
+    (found,) = messages(tmp_path, text, Controller)
+    assert "Controller does not implement nap() (do_nap)" in found
+    assert messages(tmp_path, text, Napper) == []
+    assert messages(tmp_path, with_nap(), FiresNap) == []
+
+
+def test_an_attribute_put_fires_its_trigger(tmp_path: Path) -> None:
+    text = with_nap().replace("trigger: go}", "trigger: nap}")
+    text = text.replace("  - {trigger: go, source: Ready, dest: Busy}\n", "")
+    text = text.replace("  go: [Ready]\n", "")
+    assert messages(tmp_path, text) == []
