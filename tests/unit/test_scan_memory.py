@@ -1,16 +1,19 @@
 """A scan's points take memory in proportion to its dimensions, not to its
-number of points: building and validating compute no point, and scanspec is
-imported only when a Spec is used."""
+number of points: building and validating compute no point, `malcolm points`
+streams, and scanspec is imported only when a Spec is used."""
 
 from __future__ import annotations
 
 import json
+import resource
 import subprocess
 import sys
 import tracemalloc
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
 from malcolm.core import PointGeneratorMeta
 from malcolm.scan import ScanPoints, gda, scan_points
@@ -160,6 +163,70 @@ def test_kept_scans_hold_no_whole_arrays():
 
     kept = list(load._built._scans.values())
     assert len(kept) == 1 and held_bytes(kept) < 4096
+
+
+def run_limited(argv: list[str], limit_mib: int, read: int) -> tuple[bytes, int, str]:
+    """Run ``argv`` with at most ``limit_mib`` MiB of address space; read the
+    first ``read`` bytes of its output, then close it."""
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (limit_mib * MIB, limit_mib * MIB))
+
+    child = subprocess.Popen(
+        argv,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        preexec_fn=limit,
+        env={"OPENBLAS_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"},
+    )
+    assert child.stdout is not None and child.stderr is not None
+    out = b""
+    while len(out) < read:
+        data = child.stdout.read(read - len(out))
+        if not data:
+            break
+        out += data
+    child.stdout.close()
+    status = child.wait(timeout=120)
+    err = child.stderr.read().decode()
+    child.stderr.close()
+    return out, status, err
+
+
+def test_points_streams_a_1e8_point_scan_in_bounded_memory(tmp_path: Path):
+    file = tmp_path / "big.json"
+    file.write_text(json.dumps(snake_grid(10_000, 10_000)))
+    # one whole-scan array alone would be 763 MiB
+    out, status, err = run_limited(
+        [sys.executable, "-m", "malcolm", "points", str(file)], 1024, 4 * MIB
+    )
+    assert len(out) == 4 * MIB, err
+    assert out.startswith(
+        b'{"axes": ["y", "x"], "size": 100000000, "shape": [10000, 10000], '
+        b'"positions": {"y": [0.0, 0.0, '
+    )
+    assert status == 141 and err == ""  # ended by the closed pipe, quietly
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        snake_grid(3, 4),
+        with_circle(snake_grid(5, 6)),
+        gda.compound(gda.spiral("x", "y", 2.0), duration=-1),
+    ],
+    ids=["snake", "region", "spiral"],
+)
+def test_points_output_is_the_whole_document(tmp_path: Path, data, capsys):
+    from malcolm.cli import main
+
+    file = tmp_path / "scan.json"
+    file.write_text(json.dumps(data))
+    assert main(["points", str(file)]) == 0
+    out = capsys.readouterr().out
+    points = scan_points(data)
+    assert out == json.dumps(points.to_json(), allow_nan=False) + "\n"
+    assert json.loads(out)["positions"]["x"] == points.positions["x"].tolist()
 
 
 def test_scanspec_is_imported_only_for_a_spec():
