@@ -8,6 +8,7 @@ dimension, and whether that dimension runs backwards, is index arithmetic.
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -62,6 +63,23 @@ class Chunk:
 
     def __len__(self) -> int:
         return self.stop - self.start
+
+
+def _integer(name: str, value: Any) -> int:
+    """``value`` as an int (a numpy integer will do, a float will not)."""
+    try:
+        return operator.index(value)
+    except TypeError:
+        raise TypeError(
+            f"{name} must be an integer, got {type(value).__name__}"
+        ) from None
+
+
+def _chunk_size(value: Any) -> int:
+    size = _integer("chunk_size", value)
+    if size < 1:
+        raise ValueError(f"chunk_size must be at least 1, got {size}")
+    return size
 
 
 def _frozen(values: np.ndarray) -> np.ndarray:
@@ -138,11 +156,13 @@ class ScanPoints:
 
     # ---- points of some steps
 
-    def _check_range(self, start: int, stop: int) -> None:
+    def _check_range(self, start: int, stop: int) -> tuple[int, int]:
+        start, stop = _integer("start", start), _integer("stop", stop)
         if not 0 <= start <= stop <= self._size:
             raise IndexError(
                 f"steps {start} to {stop} are not a range of the {self._size} points"
             )
+        return start, stop
 
     def _axes(self, axes: Sequence[str] | None) -> list[str]:
         if axes is None:
@@ -193,7 +213,7 @@ class ScanPoints:
             IndexError: if ``start .. stop`` is not within the scan.
             KeyError: naming an axis the scan does not have.
         """
-        self._check_range(start, stop)
+        start, stop = self._check_range(start, stop)
         names = self._axes(axes)
         positions, lower, upper, duration = self._evaluate(
             np.arange(start, stop), names, bounds=True, duration=True
@@ -215,15 +235,22 @@ class ScanPoints:
         axes: Sequence[str] | None = None,
     ) -> Iterator[Chunk]:
         """The steps ``start .. stop-1`` (default: the whole scan) as chunks of
-        at most ``chunk_size`` steps."""
-        stop = self._size if stop is None else stop
-        self._check_range(start, stop)
-        if chunk_size < 1:
-            raise ValueError(f"chunk_size must be at least 1, got {chunk_size}")
-        for first in range(start, stop, chunk_size):
-            yield self.chunk(first, min(stop, first + chunk_size), axes)
+        at most ``chunk_size`` steps.
+
+        Raises:
+            IndexError, KeyError: as `chunk`, when called.
+            ValueError: if ``chunk_size`` is not a positive integer.
+        """
+        start, stop = self._check_range(start, self._size if stop is None else stop)
+        size = _chunk_size(chunk_size)
+        names = self._axes(axes)
+        return (
+            self.chunk(first, min(stop, first + size), names)
+            for first in range(start, stop, size)
+        )
 
     def _step(self, index: int) -> int:
+        index = _integer("index", index)
         if not -self._size <= index < self._size:
             raise IndexError(f"point {index} is out of range for {self._size} points")
         return index % self._size
@@ -371,15 +398,24 @@ class ScanPoints:
             ValueError: for an unknown kind, or durations of a scan without.
         """
         if kind == "duration":
-            if axis is not None or not self._timed:
+            if axis is not None:
                 raise ValueError("durations are of the scan, not of an axis")
+            if not self._timed:
+                raise ValueError("this scan does not say how long its points take")
             axes: list[str] = []
         elif kind in ("positions", "lower", "upper"):
             if axis is None:
                 raise ValueError(f"{kind} are of an axis: name one")
             axes = self._axes([axis])
         else:
-            raise ValueError(f"unknown kind {kind!r}")
+            raise ValueError(
+                f"unknown kind {kind!r}: expected positions, lower, upper or duration"
+            )
+        return self._column(kind, axes, _chunk_size(chunk_size))
+
+    def _column(
+        self, kind: str, axes: list[str], chunk_size: int
+    ) -> Iterator[np.ndarray]:
         for first in range(0, self._size, chunk_size):
             steps = np.arange(first, min(self._size, first + chunk_size))
             positions, lower, upper, duration = self._evaluate(
@@ -399,8 +435,9 @@ class ScanPoints:
         the size of the scan.
 
         Raises:
-            ValueError: if a value is not finite (cannot be JSON).
+            ValueError: if ``chunk_size`` is not a positive integer; while
+                iterating, if a value is not finite (cannot be JSON).
         """
         from .jsonout import iter_json
 
-        return iter_json(self, chunk_size)
+        return iter_json(self, _chunk_size(chunk_size))

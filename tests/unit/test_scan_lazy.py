@@ -310,6 +310,95 @@ def test_compound_lazy_equals_eager(data, cuts):
     check_against(scan_points(data), expected, cuts)
 
 
+huge = st.one_of(
+    numbers,
+    st.floats(-1.7e308, 1.7e308, allow_nan=False, allow_infinity=False),
+    st.sampled_from([1e308, -1e308, 1.7e308, -1.7e308, 8e307, -8e307]),
+)
+
+
+@st.composite
+def huge_compounds(draw: Any) -> dict[str, Any]:
+    """Compounds whose numbers may overflow (and no region)."""
+    kind = draw(st.sampled_from(["line", "spiral", "lissajous", "array", "concat"]))
+    if kind == "line":
+        gen = line("x", draw(huge), draw(huge), draw(st.integers(1, 4)))
+    elif kind == "spiral":
+        scale = draw(st.sampled_from([1.0, 1e300, 1e307, 1.7e308]))
+        gen = {
+            "typeid": P + "SpiralGenerator:1.0",
+            "axes": ["x", "w"],
+            "centre": [draw(huge), draw(huge)],
+            "radius": min(1.7e308, draw(st.sampled_from([0.0, 1.0, 3.0, 6.0])) * scale),
+            "scale": scale,
+        }
+    elif kind == "lissajous":
+        gen = {
+            "typeid": P + "LissajousGenerator:1.0",
+            "axes": ["x", "w"],
+            "centre": [draw(huge), draw(huge)],
+            "span": [draw(huge), draw(huge)],
+            "lobes": 1,
+            "size": draw(st.integers(1, 6)),
+        }
+    elif kind == "array":
+        gen = {
+            "typeid": P + "ArrayGenerator:1.0",
+            "axes": ["x"],
+            "points": draw(st.lists(huge, min_size=2, max_size=4)),
+        }
+    else:
+        gen = {
+            "typeid": P + "ConcatGenerator:1.0",
+            "generators": [
+                line("x", draw(huge), draw(huge), draw(st.integers(1, 3)))
+                for _ in range(2)
+            ],
+        }
+    outer = line("y", draw(huge), draw(huge), draw(st.integers(1, 3)))
+    generators = [outer, gen] if draw(st.booleans()) else [gen, outer]
+    return {
+        "typeid": P + "CompoundGenerator:1.0",
+        "generators": generators,
+        "continuous": draw(st.booleans()),
+    }
+
+
+@settings(SETTINGS, max_examples=600)
+@given(data=huge_compounds())
+def test_numbers_too_large_are_refused_as_before(data):
+    """What overflows is refused without computing every point, naming the
+    generator, where the eager algorithm refused it; and where a curve's box
+    (centre +- its reach) overflows though no point of it does, which is
+    within a factor of a few of the largest float."""
+    try:
+        expected = oracle_points(data)
+    except GeneratorError as e:
+        with pytest.raises(GeneratorError) as info:
+            scan_points(data)
+        if "not all finite" in str(e):
+            assert info.value.path.startswith("generators[")
+            assert "are not all finite (inputs too large?)" in info.value.reason
+        else:
+            assert str(info.value) == str(e)
+        return
+    curves = ("Spiral", "Lissajous")
+    try:
+        points = scan_points(data)
+    except GeneratorError as e:
+        assert "are not all finite" in e.reason
+        curve = data["generators"][int(e.path[len("generators[")])]
+        assert curve["typeid"].endswith(tuple(f"{c}Generator:1.0" for c in curves))
+        largest = max(
+            float(np.max(np.abs(expected[k][a])))
+            for k in ("positions", "lower", "upper")
+            for a in curve["axes"]
+        )
+        assert largest > 1e307
+        return
+    check_against(points, expected, [1, 3])
+
+
 def test_chunks_of_a_snake_grid_with_a_region():
     data = {
         "typeid": P + "CompoundGenerator:1.0",
@@ -395,8 +484,28 @@ def test_bad_ranges_and_axes_are_named():
         points.position("q", 0)
     with pytest.raises(IndexError, match="point 4 is out of range for 4 points"):
         points.point(4)
+    with pytest.raises(ValueError, match="chunk_size must be at least 1, got 0"):
+        points.chunks(0)  # said when called, not when first iterated
     with pytest.raises(ValueError, match="chunk_size must be at least 1"):
-        list(points.chunks(0))
+        points.iter_json(-1)
+    with pytest.raises(TypeError, match="start must be an integer, got float"):
+        points.chunk(1.5, 3)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="index must be an integer, got str"):
+        points.point("1")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="chunk_size must be an integer"):
+        points.column("positions", "x", 2.0)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="unknown kind 'middle'"):
+        points.column("middle", "x")
+    with pytest.raises(ValueError, match="positions are of an axis"):
+        points.column("positions")
+    with pytest.raises(ValueError, match="does not say how long"):
+        points.column("duration")
+    with pytest.raises(KeyError, match="'q'"):
+        points.chunks(axes=["q"])
+    assert points.chunk(np.int64(1), np.int32(3)).positions["x"].tolist() == [
+        1 / 3,
+        2 / 3,
+    ]
     assert points.point(-1) == {"x": 1.0}
     assert points.duration_at(0) is None
     assert len(points.chunk(4, 4)) == 0
