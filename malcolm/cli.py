@@ -8,12 +8,12 @@ way.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 
 def cmd_points(args: argparse.Namespace) -> int:
-    """Print every point of the scan described in ``args.file`` as JSON."""
+    """Print every point of the scan described in ``args.file`` as one JSON
+    document, written a chunk at a time (memory does not grow with the scan)."""
     from malcolm.scan.files import GeneratorFileError, points_from_file
 
     try:
@@ -22,11 +22,13 @@ def cmd_points(args: argparse.Namespace) -> int:
         print(e, file=sys.stderr)
         return 1
     try:
-        text = json.dumps(points.to_json(), allow_nan=False)
-    except ValueError as e:  # a non-finite value for JSON
+        for piece in points.iter_json():
+            sys.stdout.write(piece)
+    except ValueError as e:  # a non-finite value for JSON (refused when built)
+        sys.stdout.write("\n")
         print(f"{args.file}: {e}", file=sys.stderr)
         return 1
-    print(text)
+    sys.stdout.write("\n")
     return 0
 
 

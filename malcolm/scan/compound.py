@@ -15,6 +15,11 @@ This reproduces the points scanpointgenerator 3.x produces:
 - Only the innermost generator has real bounds (and only if ``continuous``);
   every other axis has lower == upper == position. Running backwards swaps
   lower and upper.
+
+Nothing here computes the scan's points: each dimension is a
+`GeneratorDimension` that computes its own when asked. The one exception is a
+dimension with a region, whose kept points are found once, a chunk at a time
+(`malcolm.scan.regions`).
 """
 
 from __future__ import annotations
@@ -26,55 +31,19 @@ from typing import Any
 
 import numpy as np
 
+from .dimensions import GeneratorDimension
 from .errors import GeneratorError
 from .fields import Fields
-from .generators import (
-    COMPOUND_TYPEID,
-    Arrays,
-    Generator,
-    LineGenerator,
-    check_size,
-    parse_generator,
-)
-from .points import Dimension, ScanPoints
-from .rois import ROI, RectangularROI, parse_roi
+from .generators import COMPOUND_TYPEID, Generator, LineGenerator, check_size
+from .nested import parse_generator
+from .points import ScanPoints
+from .regions import CHUNK, Excluder, find_runs, parse_excluder
+from .rois import RectangularROI
 
-ROI_EXCLUDER_TYPEID = "scanpointgenerator:excluder/ROIExcluder:1.0"
 #: scanpointgenerator's mutators (its only one in 3.1), which we do not reproduce
 UNSUPPORTED_MUTATORS = {
     "scanpointgenerator:mutator/RandomOffsetMutator:1.0": "RandomOffsetMutator",
 }
-
-
-@dataclass
-class _Excluder:
-    """A parsed ROIExcluder."""
-
-    path: str
-    axes: list[str]
-    rois: list[ROI]
-
-    def mask(self, positions: Arrays) -> np.ndarray:
-        """True where a point is inside any of the ROIs."""
-        x, y = positions[self.axes[0]], positions[self.axes[1]]
-        inside = np.zeros(len(x), dtype=bool)
-        for roi in self.rois:
-            inside |= roi.mask(x, y)
-        return inside
-
-
-def _parse_excluder(data: Any, path: str) -> _Excluder:
-    fields = Fields(data, path)
-    typeid = fields.string("typeid")
-    if typeid != ROI_EXCLUDER_TYPEID:
-        raise GeneratorError(path, f"unknown typeid {typeid!r}")
-    axes = fields.axes(count=2)
-    items = fields.items("rois")
-    if not items:
-        raise GeneratorError(fields.at("rois"), "expected at least one ROI")
-    rois = [parse_roi(value, roi_path) for roi_path, value in items]
-    fields.check_no_extra()
-    return _Excluder(path, axes, rois)
 
 
 def _reject_mutator(data: Any, path: str) -> None:
@@ -94,19 +63,37 @@ class _Dim:
     """One dimension of the scan: generators merged by excluders."""
 
     generators: list[Generator]
-    excluders: list[_Excluder]
+    excluders: list[Excluder]
 
     @property
     def axes(self) -> list[str]:
         return [a for g in self.generators for a in g.axes]
 
     @property
-    def alternate(self) -> bool:
-        return self.generators[0].alternate
+    def path(self) -> str:
+        """What names the dimension in an error: its last excluder, or its
+        generator."""
+        return self.excluders[-1].path if self.excluders else self.generators[0].path
+
+
+def _inside(gen: LineGenerator, axis: str, low: float, high: float) -> list[int]:
+    """First and last index, and the number of points, of ``gen`` whose
+    ``axis`` is within ``low .. high`` (empty if none), a chunk at a time."""
+    first = last = -1
+    count = 0
+    for start in range(0, gen.size, CHUNK):
+        index = np.arange(start, min(gen.size, start + CHUNK))
+        values = gen.positions_at(index)[axis]
+        inside = np.flatnonzero((values >= low) & (values <= high))
+        if len(inside):
+            first = int(index[inside[0]]) if first < 0 else first
+            last = int(index[inside[-1]])
+            count += len(inside)
+    return [first, last, count] if count else []
 
 
 def _shrink_to_rectangle(
-    generators: list[Generator], excluder: _Excluder
+    generators: list[Generator], excluder: Excluder
 ) -> list[Generator] | None:
     """Apply an unrotated rectangle on two LineGenerators by shortening them.
 
@@ -130,27 +117,27 @@ def _shrink_to_rectangle(
     result = list(generators)
     for axis, gen, (low, high) in zip(excluder.axes, owners, limits):
         assert isinstance(gen, LineGenerator)
-        positions = gen.positions()
-        inside = np.flatnonzero((positions[axis] >= low) & (positions[axis] <= high))
-        if len(inside) == 0:
+        inside = _inside(gen, axis, low, high)
+        if not inside:
             raise GeneratorError(
                 excluder.path,
                 f"region excludes every point of axis {axis!r}, so the whole scan",
             )
-        first, last = inside[0], inside[-1]
+        first, last, count = inside
+        ends = gen.positions_at(np.array([first, last]))
         result[result.index(gen)] = LineGenerator(
             gen.path,
             gen.axes,
             gen.units,
-            [float(positions[a][first]) for a in gen.axes],
-            [float(positions[a][last]) for a in gen.axes],
-            len(inside),
+            [float(ends[a][0]) for a in gen.axes],
+            [float(ends[a][1]) for a in gen.axes],
+            count,
             gen.alternate,
         )
     return result
 
 
-def _owner(generators: list[Generator], axis: str, excluder: _Excluder) -> Generator:
+def _owner(generators: list[Generator], axis: str, excluder: Excluder) -> Generator:
     for gen in generators:
         if axis in gen.axes:
             return gen
@@ -159,7 +146,7 @@ def _owner(generators: list[Generator], axis: str, excluder: _Excluder) -> Gener
     )
 
 
-def _merge_dimensions(dims: list[_Dim], excluder: _Excluder) -> list[_Dim]:
+def _merge_dimensions(dims: list[_Dim], excluder: Excluder) -> list[_Dim]:
     """Merge the dimensions the excluder's axes span and attach it there."""
     for axis in excluder.axes:
         if not any(axis in d.axes for d in dims):
@@ -187,67 +174,47 @@ def _merge_dimensions(dims: list[_Dim], excluder: _Excluder) -> list[_Dim]:
     return dims[:start] + [merged] + dims[end + 1 :]
 
 
-@dataclass
-class _PreparedDim:
-    """The points of one dimension after excluding, in forward order."""
+def _build(dim: _Dim, bounded: Generator | None) -> GeneratorDimension:
+    """The dimension's points: its generators unrolled (snaking within it),
+    keeping only the points inside its excluders' regions, with ``bounded``
+    (the scan's innermost generator, if it is in this dimension and the scan
+    is continuous) giving real bounds."""
+    check_size(math.prod(g.size for g in dim.generators), dim.path)
+    if bounded is not None:
+        bounded.check_bounds()
+    unmasked = GeneratorDimension(dim.generators, bounded)
+    if not dim.excluders:
+        return unmasked
+    axes = {a for e in dim.excluders for a in e.axes}
 
-    axes: list[str]
-    alternate: bool
-    size: int
-    positions: Arrays
-    lower: Arrays
-    upper: Arrays
+    def keep(unrolled: np.ndarray) -> np.ndarray:
+        positions, _, _ = unmasked.unrolled(unrolled, axes, bounds=False)
+        kept = np.ones(len(unrolled), dtype=bool)
+        for excluder in dim.excluders:
+            kept &= excluder.mask(positions)
+        return kept
+
+    runs = find_runs(unmasked.unrolled_size, keep)
+    if runs.size == 0:
+        raise GeneratorError(dim.path, "regions would exclude the entire scan")
+    return GeneratorDimension(dim.generators, bounded, runs)
 
 
-def _prepare(dim: _Dim, bounded: Generator | None, path: str) -> _PreparedDim:
-    """Unroll the dimension's generators (snaking within it), apply its
-    excluders, and give ``bounded`` (the scan's innermost generator, if it is in
-    this dimension and the scan is continuous) its real bounds.
-
-    ``path`` names the dimension's excluder (or generator) in error messages.
-    """
-    full = math.prod(g.size for g in dim.generators)
-    check_size(full, path)
-    t = np.arange(full)
-    positions: Arrays = {}
-    lower: Arrays = {}
-    upper: Arrays = {}
-    after = full
-    for gen in dim.generators:
-        after //= gen.size
-        runs = t // (after * gen.size)
-        index = (t // after) % gen.size
-        backwards = gen.alternate & (runs % 2 == 1)
-        index = np.where(backwards, gen.size - 1 - index, index)
-        gen_positions = gen.positions()
-        for axis in gen.axes:
-            positions[axis] = np.asarray(gen_positions[axis], dtype=float)[index]
-        if gen is bounded:
-            gen_bounds = gen.bounds()
-            step = backwards.astype(int)
-            for axis in gen.axes:
-                b = np.asarray(gen_bounds[axis], dtype=float)
-                lower[axis] = b[index + step]
-                upper[axis] = b[index + 1 - step]
-    keep = np.ones(full, dtype=bool)
-    for excluder in dim.excluders:
-        keep &= excluder.mask(positions)
-    indices = np.flatnonzero(keep)
-    if len(indices) == 0:
-        raise GeneratorError(path, "regions would exclude the entire scan")
-    kept = {a: v[indices] for a, v in positions.items()}
-    return _PreparedDim(
-        axes=dim.axes,
-        alternate=dim.alternate,
-        size=len(indices),
-        positions=kept,
-        lower={a: lower[a][indices] if a in lower else kept[a] for a in kept},
-        upper={a: upper[a][indices] if a in upper else kept[a] for a in kept},
-    )
+def _check_finite(generators: list[Generator], bounded: Generator | None) -> None:
+    """Reject a scan whose numbers overflow (absurdly large inputs), from a
+    few values per generator (`Generator.extremes`)."""
+    for gen in generators:
+        for path, axis, values in gen.extremes(bounds=gen is bounded):
+            if not np.all(np.isfinite(values)):
+                raise GeneratorError(
+                    path,
+                    f"positions or bounds of axis {axis!r} are not all finite "
+                    "(inputs too large?)",
+                )
 
 
 def compound_points(data: Mapping[str, Any]) -> ScanPoints:
-    """Compute the scan points of a CompoundGenerator dict.
+    """The scan points of a CompoundGenerator dict, computed when asked for.
 
     Raises:
         GeneratorError: naming the path of the first problem found in ``data``.
@@ -260,7 +227,7 @@ def compound_points(data: Mapping[str, Any]) -> ScanPoints:
     if not items:
         raise GeneratorError("generators", "expected at least one generator")
     generators = [parse_generator(value, path) for path, value in items]
-    excluders = [_parse_excluder(v, p) for p, v in fields.items("excluders", [])]
+    excluders = [parse_excluder(v, p) for p, v in fields.items("excluders", [])]
     for path, value in fields.items("mutators", []):
         _reject_mutator(value, path)
     duration: float | None = fields.number("duration", default=-1.0)
@@ -293,50 +260,10 @@ def compound_points(data: Mapping[str, Any]) -> ScanPoints:
         dims = _merge_dimensions(dims, excluder)
 
     bounded = generators[-1] if continuous else None
-    prepared = [
-        _prepare(
-            dim,
-            bounded if i == len(dims) - 1 else None,
-            dim.excluders[-1].path if dim.excluders else dim.generators[0].path,
-        )
+    built = [
+        _build(dim, bounded if i == len(dims) - 1 else None)
         for i, dim in enumerate(dims)
     ]
-    sizes = [d.size for d in prepared]
-    total = math.prod(sizes)
-    check_size(total, "generators")
-
-    n = np.arange(total)
-    positions: Arrays = {}
-    lower: Arrays = {}
-    upper: Arrays = {}
-    repeat = total
-    for i, dim in enumerate(prepared):
-        size = dim.size
-        repeat //= size
-        k = n // repeat
-        index = k % size
-        backwards = dim.alternate & ((k // size) % 2 == 1)
-        index = np.where(backwards, size - 1 - index, index)
-        for axis in dim.axes:
-            positions[axis] = dim.positions[axis][index]
-            if i == len(prepared) - 1:
-                lower[axis] = np.where(
-                    backwards, dim.upper[axis][index], dim.lower[axis][index]
-                )
-                upper[axis] = np.where(
-                    backwards, dim.lower[axis][index], dim.upper[axis][index]
-                )
-            else:
-                lower[axis] = positions[axis]
-                upper[axis] = positions[axis]
-
-    axes = [a for g in generators for a in g.axes]
-    return ScanPoints(
-        axes=axes,
-        shape=list(sizes),
-        dimensions=[Dimension(list(d.axes), d.size, d.alternate) for d in prepared],
-        positions={a: positions[a] for a in axes},
-        lower={a: lower[a] for a in axes},
-        upper={a: upper[a] for a in axes},
-        duration=None if duration is None else np.full(total, duration),
-    )
+    check_size(math.prod(d.size for d in built), "generators")
+    _check_finite(generators, bounded)
+    return ScanPoints(built, duration)

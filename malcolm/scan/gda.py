@@ -27,6 +27,28 @@ def line(
     }
 
 
+def spiral(
+    x: str,
+    y: str,
+    radius: float,
+    scale: float = 1.0,
+    centre: tuple[float, float] = (0.0, 0.0),
+    alternate: bool = False,
+    units: str = "mm",
+) -> dict[str, Any]:
+    """A SpiralGenerator dict: out from ``centre`` to ``radius``, rings
+    ``scale`` apart (about ``pi * (radius / scale) ** 2`` points)."""
+    return {
+        "typeid": f"{PREFIX}SpiralGenerator:1.0",
+        "axes": [x, y],
+        "units": [units, units],
+        "centre": list(centre),
+        "radius": radius,
+        "scale": scale,
+        "alternate": alternate,
+    }
+
+
 def compound(*generators: dict[str, Any], duration: float = 0.0) -> dict[str, Any]:
     """A CompoundGenerator dict of ``generators``, outermost first."""
     return {

@@ -2,18 +2,18 @@
 
 Each generator knows its axes, its number of points and whether it runs
 backwards on every other pass (``alternate``), and computes its positions and
-its bounds. Positions are sampled at indexes ``0 .. size-1`` of the generator's
+its bounds at any indexes asked for, so a scan never needs all of them at
+once. Positions are sampled at indexes ``0 .. size-1`` of the generator's
 parametric curve and bounds at the half-indexes ``-0.5 .. size-0.5`` (so there
 is one more bound than positions), which is how scanpointgenerator 3.x defines
-them.
+them. The generators that hold others (zip, concat) are in
+`malcolm.scan.nested`.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
@@ -37,7 +37,7 @@ def check_size(size: int, path: str) -> None:
         )
 
 
-def _units(fields: Fields, axes: list[str]) -> list[str]:
+def units_of(fields: Fields, axes: list[str]) -> list[str]:
     """Units are optional; a single unit applies to every axis."""
     units = fields.string_list("units", default=[""] * len(axes))
     if len(units) == 1 and len(axes) != 1:
@@ -51,7 +51,12 @@ def _units(fields: Fields, axes: list[str]) -> list[str]:
 
 
 class Generator(ABC):
-    """One scanpointgenerator generator (not the CompoundGenerator)."""
+    """One scanpointgenerator generator (not the CompoundGenerator).
+
+    Subclasses compute positions and bounds at any integer indexes; the
+    values at an index do not depend on which other indexes are asked for in
+    the same call, so a chunk of a scan is exactly the same slice of the whole.
+    """
 
     def __init__(
         self, path: str, axes: list[str], units: list[str], size: int, alternate: bool
@@ -64,12 +69,35 @@ class Generator(ABC):
         self.alternate = alternate
 
     @abstractmethod
-    def positions(self) -> Arrays:
-        """Position of each axis at each of the ``size`` points."""
+    def positions_at(self, index: np.ndarray) -> Arrays:
+        """Position of each axis at each of the integer ``index`` (0 .. size-1)."""
 
     @abstractmethod
+    def bounds_at(self, index: np.ndarray) -> Arrays:
+        """Bound of each axis at each integer ``index`` (0 .. size): point i
+        runs from bound i to bound i+1."""
+
+    @abstractmethod
+    def extremes(self, bounds: bool) -> list[tuple[str, str, np.ndarray]]:
+        """``(path, axis, values)`` for a few values per axis such that, if they
+        are all finite, so is every position (and every bound if ``bounds``).
+
+        Used to refuse absurdly large inputs without computing every point.
+        """
+
+    def check_bounds(self) -> None:
+        """Raise `GeneratorError` if this generator's bounds cannot be used
+        (a concat whose pieces do not join); called only when they are. A
+        single curve's bounds always can."""
+        return None
+
+    def positions(self) -> Arrays:
+        """Every position (``size`` per axis): memory grows with the size."""
+        return self.positions_at(np.arange(self.size))
+
     def bounds(self) -> Arrays:
-        """``size + 1`` bounds for each axis: point i runs from bound i to i+1."""
+        """Every bound (``size + 1`` per axis): memory grows with the size."""
+        return self.bounds_at(np.arange(self.size + 1))
 
 
 class CurveGenerator(Generator):
@@ -77,15 +105,15 @@ class CurveGenerator(Generator):
 
     @abstractmethod
     def _arrays(self, index: np.ndarray) -> Arrays:
-        """Evaluate the curve at (possibly fractional) indexes."""
+        """Evaluate the curve at (possibly fractional) float indexes."""
 
-    def positions(self) -> Arrays:
-        """The curve at indexes 0 .. size-1."""
-        return self._arrays(np.arange(self.size, dtype=float))
+    def positions_at(self, index: np.ndarray) -> Arrays:
+        """The curve at the integer indexes."""
+        return self._arrays(np.asarray(index).astype(float))
 
-    def bounds(self) -> Arrays:
-        """The curve at indexes -0.5 .. size-0.5."""
-        return self._arrays(np.arange(self.size + 1, dtype=float) - 0.5)
+    def bounds_at(self, index: np.ndarray) -> Arrays:
+        """The curve half an index before each integer index."""
+        return self._arrays(np.asarray(index).astype(float) - 0.5)
 
 
 class LineGenerator(CurveGenerator):
@@ -109,7 +137,7 @@ class LineGenerator(CurveGenerator):
     def parse(cls, fields: Fields) -> LineGenerator:
         """Build from a LineGenerator dict."""
         axes = fields.axes()
-        units = _units(fields, axes)
+        units = units_of(fields, axes)
         start = fields.number_list("start", len(axes))
         stop = fields.number_list("stop", len(axes))
         size = fields.positive_int("size")
@@ -127,6 +155,13 @@ class LineGenerator(CurveGenerator):
                 start = (start + stop) / 2.0
             arrays[axis] = index * step + start
         return arrays
+
+    def extremes(self, bounds: bool) -> list[tuple[str, str, np.ndarray]]:
+        """The line at its first and last index: it is monotonic."""
+        arrays = [self.positions_at(np.array([0, self.size - 1]))]
+        if bounds:
+            arrays.append(self.bounds_at(np.array([0, self.size])))
+        return [(self.path, a, values[a]) for values in arrays for a in self.axes]
 
 
 class SpiralGenerator(CurveGenerator):
@@ -167,7 +202,7 @@ class SpiralGenerator(CurveGenerator):
     def parse(cls, fields: Fields) -> SpiralGenerator:
         """Build from a SpiralGenerator dict."""
         axes = fields.axes(count=2)
-        units = _units(fields, axes)
+        units = units_of(fields, axes)
         centre = fields.number_list("centre", 2)
         radius = fields.number("radius")
         if radius < 0:
@@ -179,12 +214,26 @@ class SpiralGenerator(CurveGenerator):
         alternate = fields.boolean("alternate", default=False)
         return cls(fields.path, axes, units, centre, radius, scale, alternate)
 
+    def _phi(self, index: np.ndarray) -> np.ndarray:
+        return self._alpha * np.sqrt(index + 0.5)
+
     def _arrays(self, index: np.ndarray) -> Arrays:
-        phi = self._alpha * np.sqrt(index + 0.5)
+        phi = self._phi(index)
         return {
             self.axes[0]: self.centre[0] + self._beta * phi * np.sin(phi),
             self.axes[1]: self.centre[1] + self._beta * phi * np.cos(phi),
         }
+
+    def extremes(self, bounds: bool) -> list[tuple[str, str, np.ndarray]]:
+        """The centre +- the largest radius: the angle grows with the index,
+        and a sine or cosine never exceeds 1."""
+        # the largest index evaluated, as bounds_at or positions_at has it
+        last = np.array([self.size - 0.5 if bounds else self.size - 1.0])
+        reach = self._beta * self._phi(last)
+        return [
+            (self.path, axis, np.concatenate([centre - reach, centre + reach]))
+            for axis, centre in zip(self.axes, self.centre)
+        ]
 
 
 class LissajousGenerator(CurveGenerator):
@@ -222,7 +271,7 @@ class LissajousGenerator(CurveGenerator):
         """Build from a LissajousGenerator dict (``size`` defaults to 250 *
         lobes)."""
         axes = fields.axes(count=2)
-        units = _units(fields, axes)
+        units = units_of(fields, axes)
         centre = fields.number_list("centre", 2)
         span = fields.number_list("span", 2)
         lobes = fields.positive_int("lobes")
@@ -237,6 +286,15 @@ class LissajousGenerator(CurveGenerator):
             self.axes[0]: self.centre[0] + self._x_max * np.sin(x),
             self.axes[1]: self.centre[1] + self._y_max * np.sin(y),
         }
+
+    def extremes(self, bounds: bool) -> list[tuple[str, str, np.ndarray]]:
+        """The corners of the box the curve stays in."""
+        return [
+            (self.path, axis, np.array([centre - half, centre + half]))
+            for axis, centre, half in zip(
+                self.axes, self.centre, (abs(self._x_max), abs(self._y_max))
+            )
+        ]
 
 
 class ArrayGenerator(CurveGenerator):
@@ -253,6 +311,11 @@ class ArrayGenerator(CurveGenerator):
     ) -> None:
         super().__init__(path, axes, units, len(points), alternate)
         self.points = points
+        p = np.asarray(points, dtype=float)
+        # One extra point at each end continuing the first and last steps
+        self._extended = np.concatenate(
+            ([p[0] - (p[1] - p[0])], p, [p[-1] + (p[-1] - p[-2])])
+        )
 
     @classmethod
     def parse(cls, fields: Fields) -> ArrayGenerator:
@@ -260,7 +323,7 @@ class ArrayGenerator(CurveGenerator):
         ``axes``, as scanpointgenerator does)."""
         key = "axis" if fields.has("axis") and not fields.has("axes") else "axes"
         axes = fields.axes(key, count=1)
-        units = _units(fields, axes)
+        units = units_of(fields, axes)
         points = fields.number_list("points")
         if len(points) < 2:
             raise GeneratorError(
@@ -270,18 +333,19 @@ class ArrayGenerator(CurveGenerator):
         return cls(fields.path, axes, units, points, alternate)
 
     def _arrays(self, index: np.ndarray) -> Arrays:
-        p = np.asarray(self.points, dtype=float)
-        # One extra point at each end continuing the first and last steps
-        extended = np.concatenate(
-            ([p[0] - (p[1] - p[0])], p, [p[-1] + (p[-1] - p[-2])])
-        )
+        extended = self._extended
         whole = np.floor(index).astype(int)
         fraction = index - whole
         below = extended[whole + 1]
         return {self.axes[0]: below + fraction * (extended[whole + 2] - below)}
 
+    def extremes(self, bounds: bool) -> list[tuple[str, str, np.ndarray]]:
+        """Every value: the points are in the input already."""
+        arrays = [self.positions()] + ([self.bounds()] if bounds else [])
+        return [(self.path, self.axes[0], values[self.axes[0]]) for values in arrays]
 
-class StaticGenerator(CurveGenerator):
+
+class StaticGenerator(Generator):
     """``size`` repeats of the same point, with no axis or with one axis whose
     value counts 1, 2, ... ``size``."""
 
@@ -294,153 +358,18 @@ class StaticGenerator(CurveGenerator):
             raise GeneratorError(
                 fields.at("axes"), f"expected at most 1 axis, got {len(axes)}"
             )
-        units = _units(fields, axes) if axes else []
+        units = units_of(fields, axes) if axes else []
         return cls(fields.path, axes, units, size, False)
 
-    def _arrays(self, index: np.ndarray) -> Arrays:
-        # scanpointgenerator numbers the points from 1, bounds included
-        return {axis: np.arange(1, len(index) + 1, dtype=float) for axis in self.axes}
+    # scanpointgenerator numbers the points from 1, and the bounds too
+    def positions_at(self, index: np.ndarray) -> Arrays:
+        """Point i is at i + 1."""
+        return {axis: np.asarray(index) + 1.0 for axis in self.axes}
 
+    def bounds_at(self, index: np.ndarray) -> Arrays:
+        """Bound i is at i + 1 (as scanpointgenerator has it)."""
+        return {axis: np.asarray(index) + 1.0 for axis in self.axes}
 
-class ZipGenerator(Generator):
-    """Several generators of equal size run in step, one point from each."""
-
-    def __init__(self, path: str, generators: list[Generator], alternate: bool) -> None:
-        self.generators = generators
-        axes = [a for g in generators for a in g.axes]
-        units = [u for g in generators for u in g.units]
-        super().__init__(path, axes, units, generators[0].size, alternate)
-
-    @classmethod
-    def parse(cls, fields: Fields) -> ZipGenerator:
-        """Build from a ZipGenerator dict."""
-        generators = _parse_children(fields, "zip")
-        seen: dict[str, str] = {}
-        for gen in generators:
-            if gen.size != generators[0].size:
-                raise GeneratorError(
-                    gen.path,
-                    f"all generators in a ZipGenerator must have the same size: "
-                    f"this one has {gen.size}, the first has {generators[0].size}",
-                )
-            for axis in gen.axes:
-                if axis in seen:
-                    raise GeneratorError(
-                        gen.path, f"axis {axis!r} is already used by {seen[axis]}"
-                    )
-                seen[axis] = gen.path
-        alternate = fields.boolean("alternate", default=False)
-        return cls(fields.path, generators, alternate)
-
-    def positions(self) -> Arrays:
-        """Union of the children's positions."""
-        return {k: v for g in self.generators for k, v in g.positions().items()}
-
-    def bounds(self) -> Arrays:
-        """Union of the children's bounds."""
-        return {k: v for g in self.generators for k, v in g.bounds().items()}
-
-
-class ConcatGenerator(Generator):
-    """Several generators on the same axes, run one after the other."""
-
-    #: How far apart the last bound of one child and the first bound of the next
-    #: may be (scanpointgenerator's limit)
-    BOUNDS_TOLERANCE = 1e-5
-
-    def __init__(self, path: str, generators: list[Generator], alternate: bool) -> None:
-        self.generators = generators
-        size = sum(g.size for g in generators)
-        super().__init__(path, generators[0].axes, generators[0].units, size, alternate)
-
-    @classmethod
-    def parse(cls, fields: Fields) -> ConcatGenerator:
-        """Build from a ConcatGenerator dict."""
-        generators = _parse_children(fields, "concat")
-        first = generators[0]
-        for gen in generators[1:]:
-            if gen.axes != first.axes:
-                raise GeneratorError(
-                    gen.path,
-                    f"all generators in a ConcatGenerator must have the same axes: "
-                    f"this one has {gen.axes}, the first has {first.axes}",
-                )
-            if gen.units != first.units:
-                raise GeneratorError(
-                    gen.path,
-                    f"all generators in a ConcatGenerator must have the same units: "
-                    f"this one has {gen.units}, the first has {first.units}",
-                )
-        alternate = fields.boolean("alternate", default=False)
-        return cls(fields.path, generators, alternate)
-
-    def positions(self) -> Arrays:
-        """The children's positions one after the other."""
-        parts = [g.positions() for g in self.generators]
-        return {a: np.concatenate([p[a] for p in parts]) for a in self.axes}
-
-    def bounds(self) -> Arrays:
-        """The children's bounds joined: the upper bound ending one child must be
-        the lower bound starting the next."""
-        parts = [g.bounds() for g in self.generators]
-        result = {}
-        for axis in self.axes:
-            pieces = [parts[0][axis]]
-            for gen, part in zip(self.generators[1:], parts[1:]):
-                end, begin = float(pieces[-1][-1]), float(part[axis][0])
-                if abs(end - begin) >= self.BOUNDS_TOLERANCE:
-                    raise GeneratorError(
-                        gen.path,
-                        f"bounds of axis {axis!r} do not join the previous "
-                        f"generator's ({begin:g} != {end:g}); a continuous scan "
-                        f"needs them to meet (or set continuous to false)",
-                    )
-                pieces[-1] = pieces[-1][:-1]
-                pieces.append(part[axis])
-            result[axis] = np.concatenate(pieces)
-        return result
-
-
-def _parse_children(fields: Fields, kind: str) -> list[Generator]:
-    items = fields.items("generators")
-    if not items:
-        raise GeneratorError(fields.at("generators"), "expected at least one generator")
-    children = [parse_generator(value, path) for path, value in items]
-    for child in children:
-        if child.alternate:
-            raise GeneratorError(
-                child.path + ".alternate",
-                f"must be false inside a {kind} generator; "
-                f"set alternate on the {kind} generator itself",
-            )
-    return children
-
-
-_PARSERS: dict[str, Callable[[Fields], Generator]] = {
-    PREFIX + "LineGenerator:1.0": LineGenerator.parse,
-    PREFIX + "SpiralGenerator:1.0": SpiralGenerator.parse,
-    PREFIX + "LissajousGenerator:1.0": LissajousGenerator.parse,
-    PREFIX + "ArrayGenerator:1.0": ArrayGenerator.parse,
-    PREFIX + "StaticPointGenerator:1.0": StaticGenerator.parse,
-    # Not a scanpointgenerator typeid, accepted as an alias
-    PREFIX + "StaticGenerator:1.0": StaticGenerator.parse,
-    PREFIX + "ZipGenerator:1.0": ZipGenerator.parse,
-    PREFIX + "ConcatGenerator:1.0": ConcatGenerator.parse,
-}
-
-
-def parse_generator(data: Any, path: str) -> Generator:
-    """Parse one generator dict found at ``path`` of the input."""
-    fields = Fields(data, path)
-    typeid = fields.string("typeid")
-    if typeid == COMPOUND_TYPEID:
-        raise GeneratorError(
-            path, "a CompoundGenerator cannot be nested; nest its generators instead"
-        )
-    parser = _PARSERS.get(typeid)
-    if parser is None:
-        raise GeneratorError(path, f"unknown typeid {typeid!r}")
-    generator = parser(fields)
-    fields.check_no_extra()
-    check_size(generator.size, path)
-    return generator
+    def extremes(self, bounds: bool) -> list[tuple[str, str, np.ndarray]]:
+        """Nothing to check: counting to at most MAX_POINTS + 1."""
+        return []

@@ -2,32 +2,69 @@
 
 from __future__ import annotations
 
+import json
 import os
+import threading
+from collections import OrderedDict
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from scanspec.specs import Spec
 
 from .compound import compound_points
 from .errors import GeneratorError
 from .fields import describe
 from .points import ScanPoints
-from .spec import deserialize_spec, spec_points
+from .spec import deserialize_spec, is_spec, spec_points
+
+#: How many scans built from data `scan_points` keeps, by their content
+CACHE_SIZE = 4
 
 
-def _finite(points: ScanPoints) -> ScanPoints:
-    """Reject a scan whose numbers overflowed (absurdly large inputs)."""
-    for name in ("positions", "lower", "upper"):
-        for axis, values in getattr(points, name).items():
-            if not np.all(np.isfinite(values)):
-                raise GeneratorError(
-                    "",
-                    f"{name} of axis {axis!r} are not all finite (inputs too large?)",
-                )
-    if points.duration is not None and not np.all(np.isfinite(points.duration)):
-        raise GeneratorError("", "durations are not all finite")
-    return points
+class _Built:
+    """The last few scans built from data, by content, so that validating a
+    configure's generator and then preparing it builds it once. What is kept
+    is each scan's dimensions (`ScanPoints.copy`), never whole-scan arrays."""
+
+    def __init__(self, size: int) -> None:
+        self._size = size
+        self._scans: OrderedDict[str, ScanPoints] = OrderedDict()
+        self._lock = threading.Lock()
+
+    @staticmethod
+    def key(data: Any) -> str | None:
+        """The content of ``data`` as canonical JSON, or None if it is not
+        plain JSON data (then it is not kept)."""
+        try:
+            return json.dumps(data, sort_keys=True)
+        except (TypeError, ValueError, RecursionError):
+            return None
+
+    def get(self, key: str) -> ScanPoints | None:
+        with self._lock:
+            points = self._scans.get(key)
+            if points is not None:
+                self._scans.move_to_end(key)
+        return None if points is None else points.copy()
+
+    def clear(self) -> None:
+        with self._lock:
+            self._scans.clear()
+
+    def put(self, key: str, points: ScanPoints) -> None:
+        with self._lock:
+            self._scans[key] = points.copy()
+            while len(self._scans) > self._size:
+                self._scans.popitem(last=False)
+
+
+_built = _Built(CACHE_SIZE)
+
+
+def forget_built_scans() -> None:
+    """Forget the scans `scan_points` keeps, so the next call builds afresh
+    (for benchmarks and tests)."""
+    _built.clear()
 
 
 def points_from_data(data: Any) -> ScanPoints:
@@ -58,8 +95,15 @@ def points_from_data(data: Any) -> ScanPoints:
     return compound_points(data)
 
 
-def scan_points(generator: Spec[Any] | Mapping[str, Any] | ScanPoints) -> ScanPoints:
-    """Compute every point of a scan.
+def scan_points(generator: Any) -> ScanPoints:
+    """The points of a scan, computed when asked for (see `ScanPoints`).
+
+    Building is cheap whatever the scan's size: the generators are parsed and
+    checked, and a few values of each are looked at to refuse numbers too
+    large; no point is computed, except where a region joins dimensions (its
+    kept points are found once, in chunks). The last few scans built from
+    data are kept by content, so the same dict given again (validate, then
+    configure) is not built again. Safe to call from any thread.
 
     Args:
         generator: A scanspec `Spec`; a CompoundGenerator dict as GDA sends it;
@@ -82,9 +126,15 @@ def scan_points(generator: Spec[Any] | Mapping[str, Any] | ScanPoints) -> ScanPo
             " as the name of a file",
         )
     with np.errstate(all="ignore"):
-        if isinstance(generator, Spec):
-            return _finite(spec_points(generator))
-        return _finite(points_from_data(generator))
+        if is_spec(generator):
+            return spec_points(generator)
+        key = _built.key(generator)
+        points = None if key is None else _built.get(key)
+        if points is None:
+            points = points_from_data(generator)
+            if key is not None:
+                _built.put(key, points)
+        return points
 
 
 def _what(value: Any) -> str:

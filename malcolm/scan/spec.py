@@ -1,27 +1,37 @@
 """Scan points from a scanspec 1.x `Spec` or its serialized dict.
 
 The spec's `calculate()` gives the stack of dimensions (outer -> inner; a
-`SnakedDimension` is a snake), and a `Path` through the stack gives every
-point. Bounds are only different from positions where the spec flies (`Fly`),
-and duration is only present where the spec sets one (`ConstantDuration`,
-``duration @ spec``).
+`SnakedDimension` is a snake), each holding its own points; they are kept as
+they are (`ArrayDimension`) and a scan step's points are taken from them as
+scanspec's `Path` would. Bounds are only different from positions where the
+spec flies (`Fly`), and duration is only present where the spec sets one
+(`ConstantDuration`, ``duration @ spec``).
+
+scanspec is imported only here, and only when a Spec is used: importing it
+builds its pydantic schemas, which takes half a second.
 """
 
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
-from scanspec.core import Path, SnakedDimension
-from scanspec.specs import Spec
 
+from .dimensions import ArrayDimension
 from .errors import GeneratorError
 from .fields import describe, join
 from .generators import check_size
-from .points import Dimension, ScanPoints
+from .points import ScanPoints
+
+
+def is_spec(value: Any) -> bool:
+    """Whether ``value`` is a scanspec Spec, without importing scanspec: if it
+    was never imported, nothing can be one."""
+    specs = sys.modules.get("scanspec.specs")
+    return specs is not None and isinstance(value, specs.Spec)
 
 
 def _axis_name(axis: Any) -> str:
@@ -44,12 +54,15 @@ def _error_path(data: Any, loc: tuple[Any, ...], path: str) -> str:
     return path
 
 
-def deserialize_spec(data: Mapping[str, Any], path: str = "") -> Spec[Any]:
+def deserialize_spec(data: Mapping[str, Any], path: str = "") -> Any:
     """Build a Spec from what ``Spec.serialize()`` gives.
 
     Raises:
         GeneratorError: naming where in ``data`` the first problem is.
     """
+    from pydantic import ValidationError
+    from scanspec.specs import Spec
+
     try:
         return Spec.deserialize(data)
     except ValidationError as e:
@@ -66,50 +79,66 @@ def deserialize_spec(data: Mapping[str, Any], path: str = "") -> Spec[Any]:
         raise GeneratorError(path, f"invalid scanspec Spec: {e}") from None
 
 
-def spec_points(spec: Spec[Any], path: str = "") -> ScanPoints:
-    """Compute the scan points of a scanspec Spec.
+def _floats(source: Mapping[Any, Any], originals: list[Any]) -> dict[str, np.ndarray]:
+    return {_axis_name(a): np.asarray(source[a], dtype=float) for a in originals}
+
+
+def spec_points(spec: Any, path: str = "") -> ScanPoints:
+    """The scan points of a scanspec Spec: its dimensions as scanspec
+    calculates them (each of its own size), the scan's steps computed when
+    asked for.
 
     Raises:
-        GeneratorError: if scanspec cannot calculate the scan or it is too big.
+        GeneratorError: if scanspec cannot calculate the scan, it is too big,
+            or its numbers are not finite.
     """
+    from scanspec.core import SnakedDimension
+
     where = path
     try:
         stack = spec.calculate()
         shape = [len(dim) for dim in stack]
         check_size(math.prod(shape), where)
-        frames = Path(stack).consume()
     except GeneratorError:
         raise
     except Exception as e:  # scanspec raises many kinds for bad parameters
         raise GeneratorError(where, f"cannot calculate the scan: {e}") from None
 
-    dimensions = [
-        Dimension(
-            [_axis_name(a) for a in dim.axes()],
-            len(dim),
-            isinstance(dim, SnakedDimension),
-        )
-        for dim in stack
-    ]
     originals = [a for dim in stack for a in dim.axes()]
     axes = [_axis_name(a) for a in originals]
     if len(set(axes)) != len(axes):
         raise GeneratorError(where, f"axis names are not unique: {axes}")
+    if sum(dim.duration is not None for dim in stack) > 1:
+        # what scanspec's Path says when it meets such a stack
+        raise GeneratorError(
+            where, "cannot calculate the scan: Can't have more than one durations array"
+        )
 
-    def arrays(source: Mapping[Any, np.ndarray]) -> dict[str, np.ndarray]:
-        return {
-            name: np.asarray(source[a], dtype=float) for name, a in zip(axes, originals)
-        }
-
-    duration = None
-    if frames.duration is not None:
-        duration = np.asarray(frames.duration, dtype=float)
-    return ScanPoints(
-        axes=axes,
-        shape=shape,
-        dimensions=dimensions,
-        positions=arrays(frames.midpoints),
-        lower=arrays(frames.lower),
-        upper=arrays(frames.upper),
-        duration=duration,
-    )
+    dimensions = []
+    for dim, size in zip(stack, shape):
+        mine = dim.axes()
+        durations = None
+        if dim.duration is not None:
+            durations = np.asarray(dim.duration, dtype=float)
+        positions = _floats(dim.midpoints, mine)
+        dimension = ArrayDimension(
+            [_axis_name(a) for a in mine],
+            positions,
+            positions if dim.lower is dim.midpoints else _floats(dim.lower, mine),
+            positions if dim.upper is dim.midpoints else _floats(dim.upper, mine),
+            isinstance(dim, SnakedDimension),
+            size,
+            durations,
+        )
+        for name in ("positions", "lower", "upper"):
+            for axis, values in getattr(dimension, name).items():
+                if not np.all(np.isfinite(values)):
+                    raise GeneratorError(
+                        where,
+                        f"{name} of axis {axis!r} are not all finite "
+                        "(inputs too large?)",
+                    )
+        if durations is not None and not np.all(np.isfinite(durations)):
+            raise GeneratorError(where, "durations are not all finite")
+        dimensions.append(dimension)
+    return ScanPoints(dimensions)
