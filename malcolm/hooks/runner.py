@@ -18,7 +18,7 @@ from typing import Any
 
 from malcolm.core import AbortedError, MalcolmError, PhaseTimeoutError
 
-from .signature import hook_problem
+from .signature import hook_problem, signature_of
 from .task import BlockingTask, Task
 
 _POSITIONAL = (
@@ -43,7 +43,9 @@ class Hook:
         problem = hook_problem(func)
         if problem is not None:
             raise TypeError(f"part {part!r}, phase {phase}: {problem}")
-        params = inspect.signature(func).parameters.values()
+        sig = signature_of(func)
+        assert sig is not None  # hook_problem says so otherwise
+        params = sig.parameters.values()
         if any(p.kind == inspect.Parameter.VAR_POSITIONAL for p in params):
             nargs = 2
         else:

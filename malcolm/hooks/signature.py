@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import inspect
 import math
+import threading
+import types
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -17,16 +20,53 @@ _POSITIONAL = (
     inspect.Parameter.POSITIONAL_OR_KEYWORD,
 )
 
+# inspect.signature of a function or class, and of a method bound to any
+# instance (the same for every instance), by the function: read once
+_PLAIN: weakref.WeakKeyDictionary[Any, inspect.Signature | None] = (
+    weakref.WeakKeyDictionary()
+)
+_BOUND: weakref.WeakKeyDictionary[Any, inspect.Signature | None] = (
+    weakref.WeakKeyDictionary()
+)
+_LOCK = threading.Lock()
+
+
+def _read(func: Callable[..., Any]) -> inspect.Signature | None:
+    try:
+        return inspect.signature(func)
+    except (TypeError, ValueError):
+        return None
+
+
+def signature_of(func: Callable[..., Any]) -> inspect.Signature | None:
+    """``inspect.signature(func)`` (None if it cannot be read), read once per
+    function or class: a method bound to any instance of a class is read
+    once for all of them. Building a thousand blocks of one part class reads
+    its hook functions' and constructor's signatures once."""
+    if isinstance(func, types.MethodType) and inspect.isfunction(func.__func__):
+        table, key = _BOUND, func.__func__
+    elif inspect.isfunction(func) or inspect.isclass(func):
+        table, key = _PLAIN, func
+    else:  # another kind of callable: nothing to key on safely
+        return _read(func)
+    with _LOCK:
+        if key in table:
+            return table[key]
+    sig = _read(func)
+    with _LOCK:
+        table[key] = sig
+    return sig
+
 
 def hook_problem(func: Callable[..., Any]) -> str | None:
     """Why ``func`` cannot be called as ``func(task, device)``, or None."""
     name = getattr(func, "__qualname__", None) or repr(func)
     if not callable(func):
         return f"{name} is not callable"
-    try:
-        params = list(inspect.signature(func).parameters.values())
-    except (TypeError, ValueError):
+    sig = signature_of(func)
+    if sig is None:
         return f"{name}: its signature cannot be read"
+    params = list(sig.parameters.values())
     required = [
         p.name for p in params if p.kind in _POSITIONAL and p.default is p.empty
     ]
