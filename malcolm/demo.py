@@ -17,7 +17,6 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from malcolm.core import MalcolmError, Process
-from malcolm.scan import gda
 
 #: The demo's process file; copy it to start your own.
 DEMO_PROCESS_FILE = Path(__file__).resolve().parent / "blocks" / "demo" / "process.yaml"
@@ -37,6 +36,8 @@ def demo_generator(
     ny: int = 3, nx: int = 4, duration: float = 0.05, snake: bool = True
 ) -> dict[str, Any]:
     """A y/x grid as GDA sends it (a CompoundGenerator dict)."""
+    from malcolm.scan import gda
+
     return gda.compound(
         gda.line("y", ny), gda.line("x", nx, alternate=snake), duration=duration
     )

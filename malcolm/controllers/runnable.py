@@ -11,19 +11,21 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Mapping
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from malcolm.core import BadValueError, NumberMeta, StringArrayMeta
 from malcolm.core.generator import GeneratorMeta
 from malcolm.fsm import Transition
 from malcolm.hooks import Hook
-from malcolm.scan import ScanPoints
 
 from .configure_args import ConfigureArgs, checked_generator_meta
 from .device import Device
 from .manager import ManagerController
 from .pausing import PauseAndSeek
 from .scan_steps import ScanPlan, plan_scan
+
+if TYPE_CHECKING:
+    from malcolm.scan import ScanPoints
 
 MAX_VALIDATE_ROUNDS = 10
 

@@ -14,11 +14,12 @@ import copy
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import accumulate
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from malcolm.core import BadValueError
-from malcolm.scan import ScanPoints, scan_points
-from malcolm.scan.errors import GeneratorError
+
+if TYPE_CHECKING:  # malcolm.scan (numpy) is imported when a scan is planned
+    from malcolm.scan import ScanPoints
 
 
 class PointsCache:
@@ -48,6 +49,8 @@ class PointsCache:
 
     def points(self, generator: Any) -> ScanPoints:
         """The points of ``generator`` (GeneratorError if it is not a scan)."""
+        from malcolm.scan import ScanPoints, scan_points
+
         if isinstance(generator, ScanPoints):
             return generator
         found = self.find(generator)
@@ -91,6 +94,8 @@ def plan_scan(
     mri: str, params: Mapping[str, Any], simultaneous_axes: Sequence[str]
 ) -> ScanPlan:
     """Check configure parameters: BadValueError naming what is wrong."""
+    from malcolm.scan.errors import GeneratorError
+
     try:
         points = POINTS.points(params["generator"])
         axes = params.get("axesToMove")
