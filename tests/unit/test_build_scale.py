@@ -1,9 +1,11 @@
 """Building many blocks of one kind does the per-kind work once (issue 8):
 its files are parsed, and its classes' signatures read, once however many
-blocks are made."""
+blocks are made; ``long_lived`` keeps the collector off what a server keeps."""
 
 from __future__ import annotations
 
+import asyncio
+import gc
 import inspect
 from pathlib import Path
 
@@ -11,6 +13,7 @@ import pytest
 
 from malcolm import yamlio
 from malcolm.config.build import build_process
+from malcolm.core import long_lived
 
 
 def box_process(tmp_path: Path, blocks: int) -> Path:
@@ -52,3 +55,43 @@ def test_per_kind_work_does_not_grow_with_the_blocks(
     after_many = (len(signatures) - after_few[0], len(parses) - after_few[1])
     assert len(process.mris) == 30
     assert after_many == after_few == (0, 0)
+
+
+def test_long_lived_pauses_the_collector_then_freezes(tmp_path: Path) -> None:
+    path = box_process(tmp_path, 5)
+    assert gc.isenabled()
+    frozen = gc.get_freeze_count()
+    try:
+        with long_lived():
+            assert not gc.isenabled()
+            process = build_process(path, [tmp_path])
+        assert gc.isenabled()
+        assert gc.get_freeze_count() > frozen
+        asyncio.run(_start_stop(process))
+    finally:
+        gc.unfreeze()
+
+
+async def _start_stop(process) -> None:
+    await process.start()
+    assert all(process.get_block(m).state.value == "Ready" for m in process.mris)
+    await process.stop()
+
+
+def test_long_lived_freezes_nothing_after_an_error() -> None:
+    frozen = gc.get_freeze_count()
+    with pytest.raises(ValueError), long_lived():
+        raise ValueError("no")
+    assert gc.isenabled()
+    assert gc.get_freeze_count() == frozen
+
+
+def test_long_lived_leaves_a_disabled_collector_disabled() -> None:
+    gc.disable()
+    try:
+        with long_lived():
+            pass
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+        gc.unfreeze()
