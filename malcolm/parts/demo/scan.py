@@ -14,6 +14,7 @@ from malcolm.fsm import RunnableDevice
 from malcolm.hooks import Task
 
 from ..base import ChildPart
+from ..pacing import Deadlines
 
 
 def _retrieve(fut: asyncio.Future[Any]) -> None:
@@ -99,7 +100,9 @@ class RunnableChildPart(ChildPart):
 
 
 class MotorMovePart(ChildPart):
-    """Moves a motor block along one axis of the scan, point by point."""
+    """Moves a motor block along one axis of the scan, point by point: to each
+    point's position, then on at the point's deadline (the run's start plus
+    the durations so far, :class:`~malcolm.parts.pacing.Deadlines`)."""
 
     def __init__(self, name: str, mri: str, axis: str) -> None:
         super().__init__(name, mri)
@@ -120,12 +123,13 @@ class MotorMovePart(ChildPart):
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
         durations = device.points.duration
+        deadlines = Deadlines()
         for step in range(device.completedSteps, device.configuredSteps):
             where = self._position(device, step)
             if where is not None:
                 await task.put(self.child.demand, where)
             if durations is not None:
-                await asyncio.sleep(float(durations[step]))
+                await deadlines.wait(float(durations[step]))
             task.report_progress(step + 1)
 
     @RunnableDevice.Seek
