@@ -110,9 +110,9 @@ class MotorMovePart(ChildPart):
 
     def _position(self, device: Any, step: int) -> float | None:
         points = device.points
-        if points is None or self.axis not in points.positions:
+        if points is None or self.axis not in points.axes:
             return None
-        return float(points.positions[self.axis][step])
+        return points.point(step)[self.axis]  # one step, not the whole scan
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
