@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import copy
+import sys
 import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -56,10 +57,9 @@ class PointsCache:
     def known(self, generator: Any) -> bool:
         """Whether the points of ``generator`` need no computing (they are
         ScanPoints, or an equal generator's are kept)."""
-        if type(generator).__name__ == "ScanPoints":
-            from malcolm.scan import ScanPoints
-
-            return isinstance(generator, ScanPoints)
+        points = sys.modules.get("malcolm.scan.points")  # none made if not loaded
+        if points is not None and isinstance(generator, points.ScanPoints):
+            return True
         return self.find(generator) is not None
 
     def points(self, generator: Any) -> ScanPoints:
