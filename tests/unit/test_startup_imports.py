@@ -1,6 +1,8 @@
 """Start-up loads only what every path needs (issue 8): building and starting
 the demo process imports neither the scan engine nor what it needs (numpy,
-scanspec); they are loaded when a scan is first checked."""
+scanspec), which are loaded when a scan is first checked, nor the package
+metadata reader that finds section types by entry point (only a kind that is
+not built in needs it)."""
 
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ asyncio.run(main())
 loaded = sorted(
     m for m in sys.modules
     if m.split(".")[0] in ("numpy", "scanspec", "pydantic")
-    or m.startswith("malcolm.scan")
+    or m.startswith("malcolm.scan") or m == "importlib.metadata"
 )
 print(json.dumps(loaded))
 """
