@@ -82,11 +82,13 @@ class Snapshot:
 class FileCache(Generic[V]):
     """Values made from files, by key, kept while their file is unchanged.
 
-    ``lock`` (re-entrant) is for callers whose loading takes several steps;
+    At most ``size`` are kept: the least recently used goes first. ``lock``
+    (re-entrant) is for callers whose loading takes several steps;
     :meth:`get` and :meth:`put` take it themselves.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, size: int = 512) -> None:
+        self.size = size
         self.lock = threading.RLock()
         self._entries: dict[Any, tuple[Snapshot, V]] = {}
 
@@ -96,15 +98,19 @@ class FileCache(Generic[V]):
             entry = self._entries.get(key)
             if entry is None:
                 return None
+            del self._entries[key]
             if not entry[0].unchanged():
-                del self._entries[key]
                 return None
+            self._entries[key] = entry  # now the most recently used
             return entry[1]
 
     def put(self, key: Any, snapshot: Snapshot, value: V) -> None:
         """Keep ``value``, made from the file as ``snapshot`` saw it."""
         with self.lock:
+            self._entries.pop(key, None)
             self._entries[key] = (snapshot, value)
+            while len(self._entries) > self.size:
+                del self._entries[next(iter(self._entries))]
 
     def clear(self) -> None:
         """Forget everything: the next load reads its file again."""

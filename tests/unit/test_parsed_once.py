@@ -179,3 +179,25 @@ def test_a_changed_definition_is_read_again(tmp_path: Path) -> None:
     write(path, "ca.Double:\n    name: b\n    pv: BOX:B\n")
     after = load_definition(path)
     assert [s.params["name"] for s in after.sections] == ["b"]
+
+
+def test_the_cache_keeps_the_most_recently_used(tmp_path: Path) -> None:
+    from malcolm.filecache import FileCache, Snapshot
+
+    cache: FileCache[str] = FileCache(size=2)
+    paths = [write(tmp_path / f"{n}.txt", n) for n in "abc"]
+    for path in paths[:2]:
+        snapshot = Snapshot.take(path)
+        assert snapshot is not None
+        cache.put(path.name, snapshot, path.stem)
+    assert cache.get("a.txt") == "a"  # a is now more recent than b
+    snapshot = Snapshot.take(paths[2])
+    assert snapshot is not None
+    cache.put("c.txt", snapshot, "c")
+    assert (cache.get("a.txt"), cache.get("b.txt"), cache.get("c.txt")) == (
+        "a",
+        None,
+        "c",
+    )
+    paths[0].unlink()
+    assert cache.get("a.txt") is None and len(cache) == 1
