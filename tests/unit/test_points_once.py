@@ -43,3 +43,38 @@ def test_configuring_the_demo_scan_computes_its_points_once(computed) -> None:
 
     asyncio.run(main())
     assert len(computed) == 1
+
+
+def test_a_run_computes_its_own_steps_not_the_whole_scan(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The demo parts walk a run a chunk at a time: a 30-million-point scan's
+    whole-scan arrays (240 MB each) are never made."""
+    from malcolm.scan import gda
+    from malcolm.scan.points import ScanPoints
+
+    def refuse(self: ScanPoints, kind: str) -> None:
+        raise AssertionError(f"the whole scan's {kind} were computed")
+
+    monkeypatch.setattr(ScanPoints, "_whole", refuse)
+
+    async def main() -> None:
+        process = demo_process()
+        await process.start()
+        try:
+            generator = gda.compound(
+                gda.line("y", 10_000_000),
+                gda.line("x", 3, alternate=True),
+                duration=0.001,
+            )
+            params = {"generator": generator, "axesToMove": ["x"]}
+            await process.post(["SCAN", "configure"], params)
+            await process.post(["SCAN", "run"])
+            assert process.get(["SCAN", "state", "value"]) == "Armed"
+            assert process.get(["SCAN", "completedSteps", "value"]) == 3
+            assert process.get(["DET1", "framesTaken", "value"]) == 3
+            assert process.get(["MOTOR:X", "position", "value"]) == 1.0
+        finally:
+            await process.stop()
+
+    asyncio.run(main())

@@ -10,6 +10,7 @@ from malcolm.hooks import Task
 
 from ..base import Part, PartRegistrar
 from ..pacing import Deadlines
+from .steps import run_steps
 
 
 class SimDetectorPart(Part):
@@ -32,13 +33,10 @@ class SimDetectorPart(Part):
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
-        points = device.points
-        durations = points.duration
+        steps = run_steps(device.points, device.completedSteps, device.configuredSteps)
         deadlines = Deadlines()
-        for step in range(device.completedSteps, device.configuredSteps):
-            d = self.default_exposure
-            if durations is not None and float(durations[step]) > 0:
-                d = float(durations[step])
-            await deadlines.wait(d)
+        for step, _, duration in steps:
+            d = duration if duration is not None and duration > 0 else None
+            await deadlines.wait(d or self.default_exposure)
             self.frames.set_value(self.frames.value + 1)
             task.report_progress(step + 1)

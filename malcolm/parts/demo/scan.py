@@ -15,6 +15,7 @@ from malcolm.hooks import Task
 
 from ..base import ChildPart
 from ..pacing import Deadlines
+from .steps import run_steps
 
 
 def _retrieve(fut: asyncio.Future[Any]) -> None:
@@ -112,7 +113,7 @@ class MotorMovePart(ChildPart):
         points = device.points
         if points is None or self.axis not in points.axes:
             return None
-        return points.point(step)[self.axis]  # one step, not the whole scan
+        return points.position(self.axis, step)  # one step, not the whole scan
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
@@ -122,14 +123,15 @@ class MotorMovePart(ChildPart):
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
-        durations = device.points.duration
+        steps = run_steps(
+            device.points, device.completedSteps, device.configuredSteps, self.axis
+        )
         deadlines = Deadlines()
-        for step in range(device.completedSteps, device.configuredSteps):
-            where = self._position(device, step)
+        for step, where, duration in steps:
             if where is not None:
                 await task.put(self.child.demand, where)
-            if durations is not None:
-                await deadlines.wait(float(durations[step]))
+            if duration is not None:
+                await deadlines.wait(duration)
             task.report_progress(step + 1)
 
     @RunnableDevice.Seek
