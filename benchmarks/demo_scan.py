@@ -9,11 +9,13 @@
   at 1 us a point, where the work is all there is) must fit in it, or the
   overhead measured is that work. Beside it, what sleeping a duration per
   point (as the simulated parts did before) costs on the same run.
-- the longest stall of the loop while the demo SCAN is configured with a
-  ``--grid`` x ``--grid`` snake grid (its points computed in a worker
-  thread), measured by a ticker on the loop (a 1 ms sleep in a loop: the
-  longest gap between its wake-ups, less the 1 ms); beside it, the stall of
-  computing the same points on the loop, as configure did before.
+- the longest stall of the loop while the demo SCAN is configured (its
+  points computed in a worker thread), measured by a ticker on the loop (a
+  1 ms sleep in a loop: the longest gap between its wake-ups, less the
+  1 ms), for a ``--grid`` x ``--grid`` snake grid, a spiral of as many
+  points, and the grid with a circular region (which evaluates the joined
+  dimension when built); beside each, the stall of computing the same
+  points on the loop, as configure did before.
 """
 
 from __future__ import annotations
@@ -40,6 +42,31 @@ def grid(points: int, duration: float) -> dict[str, Any]:
     return gda.compound(
         gda.line("y", ny), gda.line("x", nx, alternate=True), duration=duration
     )
+
+
+def spiral(points: int, duration: float) -> dict[str, Any]:
+    """A spiral of about ``points`` points over x and y."""
+    radius = math.sqrt((points - 0.5) / math.pi)
+    return gda.compound(gda.spiral("x", "y", radius), duration=duration)
+
+
+def circled_grid(points: int, duration: float) -> dict[str, Any]:
+    """:func:`grid` with the points outside a circle excluded."""
+    excluder = {
+        "typeid": "scanpointgenerator:excluder/ROIExcluder:1.0",
+        "axes": ["x", "y"],
+        "rois": [
+            {
+                "typeid": "scanpointgenerator:roi/CircularROI:1.0",
+                "centre": [0.5, 0.5],
+                "radius": 0.5,
+            }
+        ],
+    }
+    return {**grid(points, duration), "excluders": [excluder]}
+
+
+SHAPES = {"snake grid": grid, "spiral": spiral, "grid, circle region": circled_grid}
 
 
 async def started() -> Process:
@@ -106,11 +133,10 @@ class Ticker:
             pass
 
 
-async def configure_stall(size: int, duration: float) -> tuple[float, float]:
-    """(longest loop stall, seconds) of configuring SCAN with a size x size grid."""
+async def configure_stall(generator: dict[str, Any]) -> tuple[float, float]:
+    """(longest loop stall, seconds) of configuring SCAN with ``generator``."""
     process = await started()
     try:
-        generator = grid(size * size, duration)
         async with Ticker() as ticker:
             start = time.perf_counter()
             await process.post(["SCAN", "configure"], {"generator": generator})
@@ -120,11 +146,11 @@ async def configure_stall(size: int, duration: float) -> tuple[float, float]:
         await process.stop()
 
 
-async def on_loop_stall(size: int, duration: float) -> float:
-    """Longest loop stall of computing the same points on the loop."""
+async def on_loop_stall(generator: dict[str, Any]) -> float:
+    """Longest loop stall of computing ``generator``'s points on the loop."""
     async with Ticker() as ticker:
         await asyncio.sleep(0)
-        scan_points(grid(size * size, duration))
+        scan_points(generator)
         await asyncio.sleep(TICK * 3)
     return ticker.worst
 
@@ -137,12 +163,17 @@ async def measure(points: int, size: int, repeats: int = 3) -> list[Row]:
         [await overhead_per_point(points, 1e-6 * (1 + i)) for i in range(repeats)]
     )
     slept = median([await sleep_per_point(points, d) for d in durations])
-    stalls = [await configure_stall(size, 0.1 + i * 1e-6) for i in range(repeats)]
-    stall = median([s for s, _ in stalls])
-    seconds = median([t for _, t in stalls])
-    before = median([await on_loop_stall(size, 0.2 + i * 1e-6) for i in range(1)])
+    stalls = []
+    for shape, make in SHAPES.items():
+        # a different scan each time, so that none finds its points kept
+        found = [
+            await configure_stall(make(size * size, 0.1 + i * 1e-6))
+            for i in range(repeats)
+        ]
+        before = await on_loop_stall(make(size * size, 0.2))
+        stalls.append((shape, found, before))
     ms = 1e3
-    return [
+    rows = [
         Row(
             f"demo scan overhead/point at {MIN_EXPOSURE * ms:g} ms",
             overhead * ms,
@@ -167,23 +198,29 @@ async def measure(points: int, size: int, repeats: int = 3) -> list[Row]:
             "-",
             "must fit in the exposure",
         ),
-        Row(
-            f"loop stall, configure {size}x{size} grid",
-            stall * ms,
-            "ms",
-            "<= 50 ms",
-            "-",
-            f"configure took {seconds:.3g} s",
-        ),
-        Row(
-            "  same points computed on the loop",
-            before * ms,
-            "ms",
-            "-",
-            "-",
-            "as configure did before",
-        ),
     ]
+    for shape, found, before in stalls:
+        rows.append(
+            Row(
+                f"loop stall, configure {size}x{size} {shape}",
+                median([s for s, _ in found]) * ms,
+                "ms",
+                "<= 50 ms",
+                "-",
+                f"configure took {median([t for _, t in found]):.3g} s",
+            )
+        )
+        rows.append(
+            Row(
+                "  same points computed on the loop",
+                before * ms,
+                "ms",
+                "-",
+                "-",
+                "as configure did before",
+            )
+        )
+    return rows
 
 
 def main(argv: list[str] | None = None) -> None:

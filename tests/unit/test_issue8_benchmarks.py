@@ -39,7 +39,11 @@ def test_the_demo_scan_benchmark_prints_its_table() -> None:
             "demo scan overhead/point at 1 ms",
             "  one asyncio.sleep(duration) a point",
             "  demo scan work/point (1 us exposure)",
-            "loop stall, configure 4x4 grid",
+            "loop stall, configure 4x4 snake grid",
+            "  same points computed on the loop",
+            "loop stall, configure 4x4 spiral",
+            "  same points computed on the loop",
+            "loop stall, configure 4x4 grid, circle region",
             "  same points computed on the loop",
         ],
     )
