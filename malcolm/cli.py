@@ -38,9 +38,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     from malcolm.demo import demo_generator, serve_demo
 
-    generator = demo_generator(duration=args.duration)
+    generator = demo_generator(duration=args.duration) if args.scan else None
     try:
-        return asyncio.run(serve_demo(args.scan, generator=generator))
+        return asyncio.run(serve_demo(args.scan, generator=generator, freeze=True))
     except Exception as e:  # no traceback reaches a user
         print(f"malcolm demo: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -74,6 +74,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     from malcolm.checker import default_search_path
     from malcolm.config import ConfigError
+    from malcolm.core import long_lived
     from malcolm.embed import from_file, serve
 
     logging.basicConfig(
@@ -85,7 +86,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
         logging.getLogger("transitions").setLevel(logging.WARNING)
     try:
         search_path = default_search_path(Path(args.file), args.search_path)
-        process = from_file(args.file, search_path)
+        with long_lived():  # the blocks live until the program ends
+            process = from_file(args.file, search_path)
     except ConfigError as e:
         for problem in e.problems:
             print(problem, file=sys.stderr)
@@ -107,7 +109,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         sys.stdout.flush()
 
     try:
-        asyncio.run(serve(process, ready))
+        asyncio.run(serve(process, ready, freeze=True))
     except Exception as e:
         print(f"malcolm serve: {type(e).__name__}: {e}", file=sys.stderr)
         return 1

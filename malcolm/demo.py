@@ -10,14 +10,14 @@ coordinates both detectors and the motors.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
-from malcolm.core import MalcolmError, Process
-from malcolm.scan import gda
+from malcolm.core import MalcolmError, Process, long_lived
 
 #: The demo's process file; copy it to start your own.
 DEMO_PROCESS_FILE = Path(__file__).resolve().parent / "blocks" / "demo" / "process.yaml"
@@ -37,6 +37,8 @@ def demo_generator(
     ny: int = 3, nx: int = 4, duration: float = 0.05, snake: bool = True
 ) -> dict[str, Any]:
     """A y/x grid as GDA sends it (a CompoundGenerator dict)."""
+    from malcolm.scan import gda
+
     return gda.compound(
         gda.line("y", ny), gda.line("x", nx, alternate=snake), duration=duration
     )
@@ -121,9 +123,12 @@ async def serve_demo(
     err: TextIO | None = None,
     signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM),
     generator: dict[str, Any] | None = None,
+    freeze: bool = False,
 ) -> int:
     """Serve the demo process until one of ``signals``, or run its scan
-    (``generator``, by default :func:`demo_generator`'s grid).
+    (``generator``, by default :func:`demo_generator`'s grid). ``freeze``
+    builds and starts it under :func:`malcolm.core.long_lived` (the command
+    line does: its blocks live until the program ends).
 
     The exit status: 0 once the scan has Finished (``scan``), or when serving
     is stopped by a signal; ``128 + signal`` (130 for SIGINT, 143 for
@@ -144,8 +149,9 @@ async def serve_demo(
     for sig in signals:
         loop.add_signal_handler(sig, on_signal, sig)
     try:
-        process = demo_process()
-        await process.start()
+        with long_lived() if freeze else contextlib.nullcontext():
+            process = demo_process()
+            await process.start()
         try:
             status = await _demo(process, scan, generator, stop, received, out, err)
         finally:

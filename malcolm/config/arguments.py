@@ -13,6 +13,8 @@ import inspect
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from malcolm.hooks.signature import signature_of
+
 from .errors import Problem, did_you_mean
 
 __all__ = ["argument_problems", "factory_name", "needs"]
@@ -26,10 +28,8 @@ def factory_name(factory: Callable[..., Any]) -> str:
 
 
 def _parameters(factory: Callable[..., Any]) -> Mapping[str, inspect.Parameter] | None:
-    try:
-        return inspect.signature(factory).parameters
-    except (TypeError, ValueError):
-        return None
+    sig = signature_of(factory)
+    return None if sig is None else sig.parameters
 
 
 def needs(factory: Callable[..., Any], name: str) -> bool:

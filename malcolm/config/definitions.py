@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from malcolm.filecache import FileCache, Snapshot
+
 from .errors import ConfigError, Problems, did_you_mean
 from .params import RESERVED_NAMES, InitParam, param_from_section, resolve_params
 from .substitute import substitute_section
@@ -92,12 +94,21 @@ def find_definition(
 
 @dataclass(frozen=True)
 class Definition:
-    """A loaded, checked definition file; nothing substituted yet."""
+    """A loaded, checked definition file; nothing substituted yet.
+
+    Shared by every block made from the file (see :func:`load_definition`):
+    expanding copies what it substitutes and changes nothing here.
+    """
 
     path: Path
-    params: list[InitParam]
-    sections: list[Section]  #: every section except init.*, in order
+    params: tuple[InitParam, ...]
+    sections: tuple[Section, ...]  #: every section except init.*, in order
     name: str = ""  #: dotted name, e.g. "ADCore.PositionPlugin"
+
+
+#: loaded definitions by (file as given, file resolved, name), kept while the
+#: file is unchanged; one with problems is read again every time
+_DEFINITIONS: FileCache[Definition] = FileCache()
 
 
 def load_definition(path: PathLike, *, name: str | None = None) -> Definition:
@@ -106,8 +117,22 @@ def load_definition(path: PathLike, *, name: str | None = None) -> Definition:
     Checks: parameter declarations, section names, at most one controller,
     ``name`` of block/client sections, ``gui.Group`` names used by
     ``group:``, and that every ``{reference}`` names a declared parameter.
+    A file is read once per process while it is unchanged: a thousand blocks
+    made from one definition share one :class:`Definition`.
     """
     path = Path(path)
+    key = (str(path), path.resolve(), name)
+    found = _DEFINITIONS.get(key)
+    if found is not None:
+        return found
+    snapshot = Snapshot.take(path)
+    definition = _read_definition(path, name)
+    if snapshot is not None:
+        _DEFINITIONS.put(key, snapshot, definition)
+    return definition
+
+
+def _read_definition(path: Path, name: str | None) -> Definition:
     file = str(path)
     problems = Problems()
     params: list[InitParam] = []
@@ -141,7 +166,7 @@ def load_definition(path: PathLike, *, name: str | None = None) -> Definition:
             substitute_section(section, names)
     problems.problems.sort(key=lambda p: p.line)
     problems.raise_if_any()
-    return Definition(path, params, sections, name or path.stem)
+    return Definition(path, tuple(params), tuple(sections), name or path.stem)
 
 
 def _check_sections(sections: list[Section], problems: Problems) -> None:

@@ -15,8 +15,8 @@ import types
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
-from malcolm.fsm import phases_of
 from malcolm.hooks.signature import hook_problem, timeout_problem
+from malcolm.parts.base import phase_functions
 
 from .arguments import default_of, factory_name
 
@@ -34,14 +34,8 @@ def hook_functions(cls: type) -> Iterator[tuple[str, Callable[..., Any]]]:
     """``(phase, function as an instance would have it)`` for every
     phase-decorated attribute of ``cls``, as ``Part.hook_functions`` finds
     them on an instance (the first definition of a name in the MRO wins)."""
-    seen: set[str] = set()
-    for klass in cls.__mro__:
-        for name, value in vars(klass).items():
-            if name in seen:
-                continue
-            seen.add(name)
-            for phase in phases_of(value):
-                yield phase, _as_bound(cls, value)
+    for phase, _, value in phase_functions(cls):
+        yield phase, _as_bound(cls, value)
 
 
 def _as_bound(cls: type, value: Any) -> Callable[..., Any]:

@@ -15,24 +15,22 @@ from malcolm.core import (
     StringArrayMeta,
 )
 
-from .scan_steps import POINTS
-
 if TYPE_CHECKING:
     from malcolm.core import Block
+    from malcolm.core.generator import PointGeneratorMeta
 
 
-def checked_generator_meta(base: type[Meta]) -> Meta:
-    """A ``base`` (GeneratorMeta) that does not check again a generator whose
-    points were computed before: GDA's validate() then configure() of one
-    scan computes its points once."""
+def configure_generator_meta(base: type[PointGeneratorMeta]) -> Meta:
+    """A ``base`` (PointGeneratorMeta) whose check of a call's argument only
+    makes it plain data: ``configure()``/``validate()`` compute the scan's
+    points themselves, once, in a worker thread (so the loop stays live),
+    and refuse a scan that cannot be done, naming what is wrong."""
 
-    class CheckedGeneratorMeta(base):  # type: ignore[valid-type,misc]
+    class ConfigureGeneratorMeta(base):  # type: ignore[valid-type,misc]
         def validate(self, value: Any) -> Any:
-            if POINTS.find(value) is not None:
-                return value  # a scan already checked: it is plain data
-            return super().validate(value)
+            return self.as_data(value)
 
-    return CheckedGeneratorMeta("The scan to do", writeable=True)
+    return ConfigureGeneratorMeta("The scan to do", writeable=True)
 
 
 class ConfigureArgs:

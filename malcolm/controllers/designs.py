@@ -21,6 +21,7 @@ from malcolm.editor.runtime import (
     FixedRuntime,
     FollowerRuntime,
 )
+from malcolm.editor.store import WriteSeenThrough
 from malcolm.parts.design import Design, ExportPart, PalettePart
 
 if TYPE_CHECKING:
@@ -122,7 +123,8 @@ class DesignCalls:
         if not name:
             raise BadValueError(f"{self.mri}.design: name a design to load")
         assert self.store is not None
-        design = self.store.load(name)  # ConfigError / BadValueError: nothing changed
+        # read in a worker thread; ConfigError / BadValueError: nothing changed
+        design = await self.store.read(name)
         parts = self.check_design(design)
 
         async def load() -> None:
@@ -167,17 +169,28 @@ class DesignCalls:
                 self,
                 plan.records_from_tables(self) + fixed,
             )
+
+            def written() -> None:
+                self._install(parts)
+                self._refresh_choices()
+                self.design.set_value(name)
+                self.modified.set_value(False)
+
             try:
-                store.save(name, records)
+                # in a worker thread, the loop live meanwhile
+                await store.write(name, records)
+            except WriteSeenThrough as e:
+                # interrupted (abort, disable) while the file was written:
+                # the file and ``design`` still agree before giving way
+                if e.path is not None:
+                    written()
+                raise
             except OSError as e:
                 raise MalcolmError(
                     f"{self.mri}: design {name!r} could not be written to {path}:"
                     f" {e.strerror or e}"
                 ) from None
-            self._install(parts)
-            self._refresh_choices()
-            self.design.set_value(name)
-            self.modified.set_value(False)
+            written()
 
         async def save() -> None:
             await self.fire("save")

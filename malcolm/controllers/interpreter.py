@@ -71,24 +71,12 @@ class Interpreter:
                 answers[name] = bool(getattr(self, name)())
             return answers[name]
 
-        for t in self._transitions_for(trigger, state):
+        for t in self.model.transitions_for(trigger, state):
             if not t.guards and not t.unless:
                 return t
             if all(guard(g) for g in t.guards) and not any(guard(g) for g in t.unless):
                 return t
         raise NotAllowedError(f"{self.mri}: cannot {trigger} in state {state}")
-
-    def _transitions_for(self, trigger: str, state: str) -> list[Transition]:
-        """``model.transitions_for``, indexed once (models do not change)."""
-        index: dict[tuple[str, str], list[Transition]] | None = self.__dict__.get(
-            "_transition_index"
-        )
-        if index is None:
-            index = {}
-            for t in self.model.transitions:
-                index.setdefault((t.trigger, t.source), []).append(t)
-            self.__dict__["_transition_index"] = index
-        return index.get((trigger, state), [])
 
     async def fire(
         self,

@@ -11,19 +11,21 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Mapping
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from malcolm.core import BadValueError, NumberMeta, StringArrayMeta
 from malcolm.core.generator import GeneratorMeta
 from malcolm.fsm import Transition
 from malcolm.hooks import Hook
-from malcolm.scan import ScanPoints
 
-from .configure_args import ConfigureArgs, checked_generator_meta
+from .configure_args import ConfigureArgs, configure_generator_meta
 from .device import Device
 from .manager import ManagerController
 from .pausing import PauseAndSeek
-from .scan_steps import ScanPlan, plan_scan
+from .scan_steps import ScanPlan, plan_scan_off_loop
+
+if TYPE_CHECKING:
+    from malcolm.scan import ScanPoints
 
 MAX_VALIDATE_ROUNDS = 10
 
@@ -55,7 +57,7 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
             "simultaneousAxes",
             StringArrayMeta("Axes that may move together in a run", writeable=True),
         )
-        self._init_configure_args(checked_generator_meta(GeneratorMeta))
+        self._init_configure_args(configure_generator_meta(GeneratorMeta))
         self.plan: ScanPlan | None = None
         self._paused = False
         self._run_inner: asyncio.Task[Any] | None = None
@@ -196,46 +198,60 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
 
     # ---- calls
     async def do_validate(self, **params: Any) -> dict[str, Any]:
-        """Check parameters; returns them as the parts would tweak them."""
+        """Check parameters; returns them as the parts would tweak them.
+
+        The scan's points are computed in a worker thread (the loop stays
+        live), once, before anything runs; a scan that cannot be done is
+        refused and changes nothing."""
+        first = await self._plan(params)
 
         async def validate() -> dict[str, Any]:
             # on a device of its own: validating must not touch the armed scan
-            device = self._device_for(params)
+            device = self._device_for(params, first)
             phase = self.model.phase_for("validate")
             if phase is not None:
                 await self.run_phase(phase, device)
-            plan_scan(self.mri, device.params, self.simultaneous_axes.value)
+            if self._tweaked(device.params, params):
+                await self._plan(device.params)
             return dict(device.params)
 
         return await self.operation("validate", validate())
 
-    def _device_for(
-        self, params: Mapping[str, Any], plan: ScanPlan | None = None
-    ) -> Device:
-        """A device for hooks checking ``params`` (BadValueError if bad)."""
-        if plan is None:
-            plan = plan_scan(self.mri, params, self.simultaneous_axes.value)
+    async def _plan(self, params: Mapping[str, Any]) -> ScanPlan:
+        """The scan ``params`` describe, planned off the loop (BadValueError
+        naming what is wrong)."""
+        return await plan_scan_off_loop(self.mri, params, self.simultaneous_axes.value)
+
+    @staticmethod
+    def _tweaked(tweaked: Mapping[str, Any], given: Mapping[str, Any]) -> bool:
+        """Whether Validate changed a parameter (compared by identity: a
+        tweak is a new value; arrays have no ==)."""
+        return tweaked.keys() != given.keys() or any(
+            tweaked[k] is not v for k, v in given.items()
+        )
+
+    def _device_for(self, params: Mapping[str, Any], plan: ScanPlan) -> Device:
+        """A device for hooks checking ``params``, whose scan is ``plan``."""
         device = Device(self)
         device.params = dict(params)
         device.points = plan.points
         return device
 
     async def do_configure(self, **params: Any) -> None:
-        """Validate the parameters and set up the scan; ends Armed."""
-        first = plan_scan(self.mri, params, self.simultaneous_axes.value)
-        device = self._device_for(params, first)  # BadValueError: nothing changed
+        """Validate the parameters and set up the scan; ends Armed.
+
+        The scan's points are computed in a worker thread (the loop stays
+        live) before anything moves: a scan that cannot be done is refused
+        and changes nothing."""
+        first = await self._plan(params)  # BadValueError: nothing changed
+        device = self._device_for(params, first)
 
         async def adopt() -> None:
             # the parameters as the parts validated them; still resting
-            # (compared by identity: a tweak is a new value; arrays have no ==)
-            tweaked = device.params.keys() != params.keys() or any(
-                device.params[k] is not v for k, v in params.items()
-            )
-            if tweaked:
-                plan = plan_scan(self.mri, device.params, self.simultaneous_axes.value)
+            plan = first
+            if self._tweaked(device.params, params):
+                plan = await self._plan(device.params)
                 device.points = plan.points
-            else:
-                plan = first
             self.plan = plan
 
         async def configure() -> None:

@@ -10,52 +10,72 @@ land on the end of the run, so that resume always has a step to do.
 
 from __future__ import annotations
 
+import asyncio
 import copy
+import sys
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import accumulate
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from malcolm.core import BadValueError
-from malcolm.scan import ScanPoints, scan_points
-from malcolm.scan.errors import GeneratorError
+
+if TYPE_CHECKING:  # malcolm.scan (numpy) is imported when a scan is planned
+    from malcolm.scan import ScanPoints
 
 
 class PointsCache:
     """The points of the last few generators given as plain data, so that
-    validate() then configure() (or a configure repeated) computes a scan's
-    points once. A generator matches an entry if it is equal to the copy the
-    entry keeps (so a caller changing its dict later changes nothing here)."""
+    validate() then configure() (or a configure repeated, or the children a
+    manager configures with the same generator) computes a scan's points
+    once. A generator matches an entry if it is equal to the copy the entry
+    keeps (so a caller changing its dict later changes nothing here). Safe to
+    use from several threads: points are computed outside its lock."""
 
     def __init__(self, size: int = 4) -> None:
         self.size = size
         self._items: list[tuple[Any, ScanPoints]] = []
+        self._lock = threading.Lock()
 
     def find(self, generator: Any) -> ScanPoints | None:
         """The points of an equal generator seen before, or None."""
         if not isinstance(generator, Mapping):
             return None
-        for i, (seen, points) in enumerate(self._items):
-            try:
-                equal = bool(seen == generator)
-            except (ValueError, TypeError):  # arrays compare element-wise
-                equal = False
-            if equal:
-                if i:
-                    self._items.insert(0, self._items.pop(i))
-                return points
+        with self._lock:
+            for i, (seen, points) in enumerate(self._items):
+                try:
+                    equal = bool(seen == generator)
+                except (ValueError, TypeError):  # arrays compare element-wise
+                    equal = False
+                if equal:
+                    if i:
+                        self._items.insert(0, self._items.pop(i))
+                    return points
         return None
+
+    def known(self, generator: Any) -> bool:
+        """Whether the points of ``generator`` need no computing (they are
+        ScanPoints, or an equal generator's are kept)."""
+        points = sys.modules.get("malcolm.scan.points")  # none made if not loaded
+        if points is not None and isinstance(generator, points.ScanPoints):
+            return True
+        return self.find(generator) is not None
 
     def points(self, generator: Any) -> ScanPoints:
         """The points of ``generator`` (GeneratorError if it is not a scan)."""
+        from malcolm.scan import ScanPoints, scan_points
+
         if isinstance(generator, ScanPoints):
             return generator
         found = self.find(generator)
         if found is None:
             found = scan_points(generator)
             if isinstance(generator, Mapping):
-                self._items.insert(0, (copy.deepcopy(generator), found))
-                del self._items[self.size :]
+                kept = copy.deepcopy(generator)
+                with self._lock:
+                    self._items.insert(0, (kept, found))
+                    del self._items[self.size :]
         return found
 
 
@@ -91,6 +111,8 @@ def plan_scan(
     mri: str, params: Mapping[str, Any], simultaneous_axes: Sequence[str]
 ) -> ScanPlan:
     """Check configure parameters: BadValueError naming what is wrong."""
+    from malcolm.scan.errors import GeneratorError
+
     try:
         points = POINTS.points(params["generator"])
         axes = params.get("axesToMove")
@@ -108,6 +130,19 @@ def plan_scan(
     if any(b <= 0 for b in breakpoints):
         raise BadValueError(f"{mri}.configure.breakpoints: must be positive")
     return ScanPlan(points, spr, tuple(accumulate(breakpoints)))
+
+
+async def plan_scan_off_loop(
+    mri: str, params: Mapping[str, Any], simultaneous_axes: Sequence[str]
+) -> ScanPlan:
+    """:func:`plan_scan` in a worker thread, so that the loop (and every other
+    block) stays live while a big scan's points are computed; at once if
+    they are known already. The plan is plain data: the caller applies it on
+    the loop. Cancelling the wait leaves the thread to finish on its own."""
+    axes = list(simultaneous_axes)
+    if POINTS.known(params.get("generator")):
+        return plan_scan(mri, params, axes)
+    return await asyncio.to_thread(plan_scan, mri, dict(params), axes)
 
 
 def pause_step(

@@ -14,6 +14,7 @@ from .errors import (
 )
 from .fields import Attribute, Field, Method, MethodLog
 from .generator import PointGeneratorMeta
+from .longlived import long_lived
 from .metas import (
     BlockMeta,
     BooleanArrayMeta,
@@ -48,7 +49,7 @@ __all__ = [
     "PhaseTimeoutError", "PointGeneratorMeta", "Process", "StringArrayMeta",
     "StringMeta", "Subscription", "TableMeta", "TimeStamp", "WaitTimeoutError",
     "apply_changes", "call_threadsafe", "enable_loop_guard", "from_dict",
-    "loop_guard_enabled", "register_typeid", "to_dict",
+    "long_lived", "loop_guard_enabled", "register_typeid", "to_dict",
 ]  # fmt: skip
 
 

@@ -19,16 +19,22 @@ class PointGeneratorMeta(Meta):
 
     typeid = "malcolm:core/PointGeneratorMeta:1.0"
 
+    def as_data(self, value: Any) -> Any:
+        """``value`` as plain data, its points not computed: a scanspec Spec
+        is serialized; None is refused (BadValueError)."""
+        if value is None:
+            raise BadValueError("a generator is required")
+        if hasattr(value, "serialize"):  # a scanspec Spec: keep it plain data
+            value = value.serialize()
+        return value
+
     def validate(self, value: Any) -> Any:
         # malcolm.scan (scanspec, numpy) is loaded only when a scan is checked
         from malcolm.scan import GeneratorError, ScanPoints, scan_points
 
-        if value is None:
-            raise BadValueError("a generator is required")
         if isinstance(value, ScanPoints):
             return value
-        if hasattr(value, "serialize"):  # a scanspec Spec: keep it plain data
-            value = value.serialize()
+        value = self.as_data(value)
         try:
             scan_points(value)
         except GeneratorError as e:

@@ -6,10 +6,15 @@ the same directory, is flushed to disk, and replaces the old file in one
 ``os.replace``, so a crash at any moment leaves the old design or the new
 one. Template designs (shipped read-only examples) are read from other
 directories and can be loaded but never overwritten.
+
+A manager reads and writes designs in a worker thread (:meth:`DesignStore.
+read`, :meth:`DesignStore.write`), so other blocks stay live while a design
+is parsed or flushed to disk.
 """
 
 from __future__ import annotations
 
+import asyncio
 import os
 import re
 import tempfile
@@ -112,6 +117,16 @@ def _remove_stale_temps(path: Path) -> None:
             pass
 
 
+class WriteSeenThrough(asyncio.CancelledError):
+    """The caller of :meth:`DesignStore.write` was cancelled while the file
+    was written: ``path`` if it was written, else ``error`` says why not."""
+
+    def __init__(self, path: Path | None, error: BaseException | None) -> None:
+        super().__init__()
+        self.path = path
+        self.error = error
+
+
 class DesignStore:
     """The designs of one manager: saved ones (writable) and templates (not)."""
 
@@ -162,6 +177,33 @@ class DesignStore:
         path = self.check_writable(name)
         atomic_write(path, dump_design(records))
         return path
+
+    async def read(self, name: str) -> Design:
+        """:meth:`load` in a worker thread (the loop stays live)."""
+        return await asyncio.to_thread(self.load, name)
+
+    async def write(self, name: str, records: Iterable[Any]) -> Path:
+        """:meth:`save` in a worker thread (the loop stays live).
+
+        A write once begun is seen through: if the caller is cancelled
+        meanwhile, it waits for the write to end and then raises
+        :class:`WriteSeenThrough` (carrying the path, or the write's error),
+        so that it knows whether the file changed and can finish its own
+        work to match before giving way."""
+        items = list(records)
+        job = asyncio.ensure_future(asyncio.to_thread(self.save, name, items))
+        try:
+            return await asyncio.shield(job)
+        except asyncio.CancelledError:
+            pass
+        while not job.done():
+            try:
+                await asyncio.shield(job)
+            except asyncio.CancelledError:
+                continue
+        if job.exception() is not None:
+            raise WriteSeenThrough(None, job.exception())
+        raise WriteSeenThrough(job.result(), None)
 
     def check_writable(self, name: str) -> Path:
         """Where ``save(name)`` writes; BadValueError for a bad or template name."""

@@ -9,7 +9,7 @@ from collections.abc import AsyncIterator, Callable, Iterable
 from contextlib import asynccontextmanager
 from typing import Any
 
-from malcolm.core import Process, Subscription
+from malcolm.core import Process, Subscription, long_lived
 
 
 @asynccontextmanager
@@ -61,11 +61,14 @@ async def serve(
     ready: Callable[[Process], None] | None = None,
     signals: Iterable[int] | None = None,
     logger: logging.Logger | None = None,
+    freeze: bool = False,
 ) -> None:
     """Start ``process`` on the current loop, logging state changes; run until
     one of ``signals`` (default SIGINT and SIGTERM) arrives, then stop it.
 
-    ``ready(process)`` is called once every block has started.
+    ``ready(process)`` is called once every block has started. ``freeze``
+    starts the blocks under :func:`malcolm.core.long_lived` (for a process
+    that serves until the program ends, as ``malcolm serve`` does).
     """
     import signal as _signal
 
@@ -76,7 +79,11 @@ async def serve(
         loop.add_signal_handler(sig, stop.set)
     subs = watch_states(process, logger)
     try:
-        await process.start()
+        if freeze:
+            with long_lived():
+                await process.start()
+        else:
+            await process.start()
         if ready is not None:
             ready(process)
         await stop.wait()

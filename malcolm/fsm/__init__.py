@@ -11,7 +11,7 @@ build ``transitions`` machines from them, and get phase decorators.
 from .check import check_model, resolve_controller
 from .draw import to_dot, to_mermaid
 from .errors import ModelError, Problem
-from .loader import builtin_models_dir, load_model, model_names
+from .loader import builtin_models_dir, clear_model_cache, load_model, model_names
 from .model import AttributeRule, Model, PhaseInfo, StateInfo, Transition
 from .phases import Phase, model_class, phases_of
 
@@ -35,6 +35,7 @@ __all__ = [
     "Transition",
     "builtin_models_dir",
     "check_model",
+    "clear_model_cache",
     "load_model",
     "model_class",
     "model_names",

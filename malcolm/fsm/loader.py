@@ -1,12 +1,20 @@
-"""Find model files, load what they extend, and report every problem."""
+"""Find model files, load what they extend, and report every problem.
+
+Models are parsed once per process: a loaded model is kept
+(:mod:`malcolm.filecache`) and the same, read-only :class:`Model` is handed
+to every controller that asks for it, until its file (or a file it extends)
+changes on disk.
+"""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from malcolm import yamlio
+from malcolm.filecache import FileCache, Snapshot
 from malcolm.yamlio import LineDict
 
 from .errors import ModelError, Problem
@@ -53,7 +61,13 @@ def load_model(name_or_path: str | Path, search: Sequence[Path] = ()) -> Model:
             places = ", ".join(str(d) for d in (*dirs, builtin_models_dir()))
             raise ModelError([Problem(f"{text}.yaml", None, f"not found in {places}")])
         path = found
-    return _load(path, dirs, chain=())
+    with _CACHE.lock:
+        return _load(path, dirs, chain=())
+
+
+def clear_model_cache() -> None:
+    """Forget every loaded model: the next load reads its files again."""
+    _CACHE.clear()
 
 
 def _find(stem: str, dirs: Sequence[Path]) -> Path | None:
@@ -73,7 +87,64 @@ def _read(path: Path) -> tuple[object, list[Problem]]:
     return data, [Problem(p.file, p.line, p.message) for p in found]
 
 
+@dataclass(frozen=True)
+class _Loaded:
+    """A loaded model and the file its ``extends`` resolved to."""
+
+    extends: str | None  # the ``extends`` value, if any
+    parent_path: Path | None  # the parent's file, resolved
+    model: Model
+
+
+#: loaded models by (file as given, file resolved, search directories). An
+#: entry is used again only while its file is unchanged and its ``extends``
+#: still resolves to the same file, whose model (loaded the same way) is the
+#: very parent the entry was built on. A model with problems is not kept: it
+#: is read again, and reports them again, every time.
+_CACHE: FileCache[_Loaded] = FileCache()
+
+
+def _cached(
+    key: tuple[str, Path, tuple[Path, ...]],
+    path: Path,
+    search: tuple[Path, ...],
+    chain: tuple[Path, ...],
+) -> Model | None:
+    """The model kept for ``key`` if it is still what loading would give."""
+    loaded = _CACHE.get(key)
+    if loaded is None:
+        return None
+    if loaded.extends is None:
+        return loaded.model
+    found = _find_parent(path, loaded.extends, search)
+    if found is None or found.resolve() != loaded.parent_path:
+        return None
+    if loaded.parent_path in (*chain, key[1]):
+        return None  # now a cycle: let the reader report it
+    try:
+        parent = _load(found, search, (*chain, key[1]))
+    except ModelError:
+        return None
+    return loaded.model if parent is loaded.model.parent else None
+
+
 def _load(path: Path, search: tuple[Path, ...], chain: tuple[Path, ...]) -> Model:
+    key = (str(path), path.resolve(), search)
+    model = _cached(key, path, search, chain)
+    if model is not None:
+        return model
+    snapshot = Snapshot.take(path)
+    model, extends = _parse(path, search, chain)
+    if snapshot is not None:
+        parent = model.parent.path.resolve() if model.parent is not None else None
+        _CACHE.put(key, snapshot, _Loaded(extends, parent, model))
+    return model
+
+
+def _parse(
+    path: Path, search: tuple[Path, ...], chain: tuple[Path, ...]
+) -> tuple[Model, str | None]:
+    """Read ``path`` (and what it extends) into a Model; also its ``extends``."""
     data, problems = _read(path)
     if data is None:
         raise ModelError(problems or [Problem(str(path), 1, "the model file is empty")])
@@ -89,7 +160,7 @@ def _load(path: Path, search: tuple[Path, ...], chain: tuple[Path, ...]) -> Mode
     model = reader.read(data, parent)
     if problems:
         raise ModelError(problems)
-    return model
+    return model, data["extends"] if parent is not None else None
 
 
 def _load_parent(

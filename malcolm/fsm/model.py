@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import transitions
@@ -81,7 +83,13 @@ class Model:
     Built by :func:`malcolm.fsm.load_model`; ``parent`` is the model it
     extends (or None) and ``locations`` maps what was declared to its
     ``(file, line)`` so that problems can say where they are.
+
+    A model is read-only once built (its mappings are read-only views, its
+    transitions a tuple, and its attributes cannot be set again), so one
+    loaded model is shared by every controller that interprets it.
     """
+
+    _frozen = False
 
     def __init__(
         self,
@@ -91,31 +99,51 @@ class Model:
         path: Path,
         initial: str,
         controller: str | None,
-        states: dict[str, StateInfo],
-        phases: dict[str, str],
-        transitions: list[Transition],
-        methods: dict[str, frozenset[str]],
-        attributes: dict[str, AttributeRule],
+        states: Mapping[str, StateInfo],
+        phases: Mapping[str, str],
+        transitions: Sequence[Transition],
+        methods: Mapping[str, frozenset[str]],
+        attributes: Mapping[str, AttributeRule],
         parent: Model | None = None,
-        locations: dict[tuple[str, ...], Location] | None = None,
-        phase_info: dict[str, PhaseInfo] | None = None,
+        locations: Mapping[tuple[str, ...], Location] | None = None,
+        phase_info: Mapping[str, PhaseInfo] | None = None,
     ) -> None:
         self.name = name
         self.description = description
         self.path = path
         self.initial = initial
         self.controller = controller
-        self.states = states
-        self.phases = phases
-        self.transitions = transitions
-        self.methods = methods
-        self.attributes = attributes
+        self.states: Mapping[str, StateInfo] = MappingProxyType(dict(states))
+        self.phases: Mapping[str, str] = MappingProxyType(dict(phases))
+        self.transitions: tuple[Transition, ...] = tuple(transitions)
+        self.methods: Mapping[str, frozenset[str]] = MappingProxyType(dict(methods))
+        self.attributes: Mapping[str, AttributeRule] = MappingProxyType(
+            dict(attributes)
+        )
         self.parent = parent
-        self.locations = locations or {}
+        self.locations: Mapping[tuple[str, ...], Location] = MappingProxyType(
+            dict(locations or {})
+        )
         #: phase name -> its role and tags (phases without either may be absent)
-        self.phase_info = {
-            name: (phase_info or {}).get(name) or PhaseInfo(name) for name in phases
-        }
+        self.phase_info: Mapping[str, PhaseInfo] = MappingProxyType(
+            {name: (phase_info or {}).get(name) or PhaseInfo(name) for name in phases}
+        )
+        index: dict[tuple[str, str], list[Transition]] = {}
+        for t in self.transitions:
+            index.setdefault((t.trigger, t.source), []).append(t)
+        self._by_move = {k: tuple(v) for k, v in index.items()}
+        self._frozen = True
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if self._frozen:
+            raise AttributeError(
+                f"model {self.name} is read-only (shared by every controller"
+                f" that interprets it): cannot set {name!r}"
+            )
+        super().__setattr__(name, value)
+
+    def __delattr__(self, name: str) -> None:
+        raise AttributeError(f"model {self.name} is read-only: cannot delete {name!r}")
 
     def __repr__(self) -> str:
         return f"<Model {self.name} from {self.path}>"
@@ -175,9 +203,7 @@ class Model:
 
     def transitions_for(self, trigger: str, source: str) -> list[Transition]:
         """The transitions ``trigger`` may take from ``source``, in order."""
-        return [
-            t for t in self.transitions if t.trigger == trigger and t.source == source
-        ]
+        return list(self._by_move.get((trigger, source), ()))
 
     def triggers_from(self, source: str) -> set[str]:
         return {t.trigger for t in self.transitions if t.source == source}

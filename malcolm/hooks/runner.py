@@ -18,13 +18,8 @@ from typing import Any
 
 from malcolm.core import AbortedError, MalcolmError, PhaseTimeoutError
 
-from .signature import hook_problem
+from .signature import hook_nargs, hook_problem
 from .task import BlockingTask, Task
-
-_POSITIONAL = (
-    inspect.Parameter.POSITIONAL_ONLY,
-    inspect.Parameter.POSITIONAL_OR_KEYWORD,
-)
 
 
 @dataclass(frozen=True)
@@ -43,11 +38,7 @@ class Hook:
         problem = hook_problem(func)
         if problem is not None:
             raise TypeError(f"part {part!r}, phase {phase}: {problem}")
-        params = inspect.signature(func).parameters.values()
-        if any(p.kind == inspect.Parameter.VAR_POSITIONAL for p in params):
-            nargs = 2
-        else:
-            nargs = min(2, sum(1 for p in params if p.kind in _POSITIONAL))
+        nargs = hook_nargs(func)
         return cls(part, phase, func, inspect.iscoroutinefunction(func), nargs)
 
 

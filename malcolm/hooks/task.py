@@ -84,8 +84,9 @@ class Task:
         self.part = part
         self._on_progress = on_progress
         self._futures: set[asyncio.Future[Any]] = set()
-        #: the when_matches futures among them (dropped by a wait that gives up)
-        self._waits: weakref.WeakSet[asyncio.Future[Any]] = weakref.WeakSet()
+        #: the when_matches futures among them (dropped by a wait that gives
+        #: up); made by the first when_matches: a process has a Task per part
+        self._waits: weakref.WeakSet[asyncio.Future[Any]] | None = None
         self._subs: dict[int, Subscription] = {}
         self._ids = itertools.count(1)
 
@@ -153,8 +154,9 @@ class Task:
 
     def _give_up(self, pending: Iterable[asyncio.Future[Any]]) -> None:
         """Drop the waits among ``pending``; log what the others end with."""
+        waits = self._waits if self._waits is not None else ()
         for f in pending:
-            if f in self._waits:
+            if f in waits:
                 f.cancel()
             else:
                 f.add_done_callback(self._report_late)
@@ -223,6 +225,8 @@ class Task:
                     fut.cancel()
 
         waiting = self._track(asyncio.ensure_future(waiter()))
+        if self._waits is None:
+            self._waits = weakref.WeakSet()
         self._waits.add(waiting)
         return waiting
 

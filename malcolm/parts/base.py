@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import inspect
+import threading
+import weakref
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -14,6 +16,36 @@ from .signature import method_meta_from
 
 if TYPE_CHECKING:
     from malcolm.controllers.base import Controller
+
+
+_PHASE_FUNCTIONS: weakref.WeakKeyDictionary[type, tuple[tuple[str, str, Any], ...]] = (
+    weakref.WeakKeyDictionary()
+)
+_LOCK = threading.Lock()
+
+
+def phase_functions(cls: type) -> tuple[tuple[str, str, Any], ...]:
+    """``(phase, attribute name, class attribute)`` for every phase-decorated
+    attribute of ``cls`` (the first definition of a name in the MRO wins), in
+    MRO then definition order. Read once per class: the phases of a class's
+    functions are fixed once a part of it has been made."""
+    with _LOCK:
+        found = _PHASE_FUNCTIONS.get(cls)
+    if found is not None:
+        return found
+    out = []
+    seen = set()
+    for klass in cls.__mro__:
+        for attr_name, value in vars(klass).items():
+            if attr_name in seen:
+                continue
+            seen.add(attr_name)
+            for phase in phases_of(value):
+                out.append((phase, attr_name, value))
+    found = tuple(out)
+    with _LOCK:
+        _PHASE_FUNCTIONS[cls] = found
+    return found
 
 
 class PartRegistrar:
@@ -91,16 +123,10 @@ class Part:
 
     def hook_functions(self) -> list[tuple[str, Callable[..., Any]]]:
         """``(phase, bound function)`` for every phase-decorated method."""
-        out = []
-        seen = set()
-        for klass in type(self).__mro__:
-            for attr_name, value in vars(klass).items():
-                if attr_name in seen:
-                    continue
-                seen.add(attr_name)
-                for phase in phases_of(value):
-                    out.append((phase, getattr(self, attr_name)))
-        return out
+        return [
+            (phase, getattr(self, name))
+            for phase, name, _ in phase_functions(type(self))
+        ]
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name}>"

@@ -2,19 +2,20 @@
 
 ``xml`` puts append one position per ``<position .../>`` element to the
 buffer (``positions`` counts what is left). A put of ``start=True`` begins
-acquisition: one frame every ``framePeriod`` seconds takes a position; the
+acquisition: one frame every ``framePeriod`` seconds (paced against fixed
+deadlines, :class:`~malcolm.parts.pacing.Deadlines`) takes a position; the
 put completes when the buffer has stayed empty for ``idleTime`` seconds,
 which is how the real plugin's put-callback ends a run.
 """
 
 from __future__ import annotations
 
-import asyncio
 import re
 from dataclasses import dataclass
 
 from malcolm.core import BooleanMeta, NumberMeta, StringMeta
 from malcolm.parts.base import Part, PartRegistrar
+from malcolm.parts.pacing import Deadlines
 
 _POSITION = re.compile(r"<position\b")
 
@@ -88,9 +89,10 @@ class SoftPositionPluginPart(Part):
             raise RuntimeError("enableCallbacks must be set before start")
         self.running.set_value(True)
         idle = 0.0
+        deadlines = Deadlines()
         try:
             while idle < self.idle_time and self.start.value:
-                await asyncio.sleep(self.frame_period)
+                await deadlines.wait(self.frame_period)
                 if self.positions.value > 0:
                     idle = 0.0
                     self.positions.set_value(self.positions.value - 1)

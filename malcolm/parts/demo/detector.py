@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 from typing import Any
 
 from malcolm.core import NumberMeta
@@ -10,10 +9,14 @@ from malcolm.fsm import RunnableDevice
 from malcolm.hooks import Task
 
 from ..base import Part, PartRegistrar
+from ..pacing import Deadlines
+from .steps import run_steps
 
 
 class SimDetectorPart(Part):
-    """Counts frames: one per point, each taking the point's duration."""
+    """Counts frames: one per point, each taking the point's duration (or
+    ``default_exposure`` if the scan gives none), paced against the run's
+    deadlines (:class:`~malcolm.parts.pacing.Deadlines`)."""
 
     def __init__(self, name: str = "detector", default_exposure: float = 0.01):
         super().__init__(name)
@@ -30,12 +33,10 @@ class SimDetectorPart(Part):
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
-        points = device.points
-        durations = points.duration
-        for step in range(device.completedSteps, device.configuredSteps):
-            d = self.default_exposure
-            if durations is not None and float(durations[step]) > 0:
-                d = float(durations[step])
-            await asyncio.sleep(d)
+        steps = run_steps(device.points, device.completedSteps, device.configuredSteps)
+        deadlines = Deadlines()
+        for step, _, duration in steps:
+            d = duration if duration is not None and duration > 0 else None
+            await deadlines.wait(d or self.default_exposure)
             self.frames.set_value(self.frames.value + 1)
             task.report_progress(step + 1)

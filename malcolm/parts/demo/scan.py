@@ -14,6 +14,8 @@ from malcolm.fsm import RunnableDevice
 from malcolm.hooks import Task
 
 from ..base import ChildPart
+from ..pacing import Deadlines
+from .steps import run_steps
 
 
 def _retrieve(fut: asyncio.Future[Any]) -> None:
@@ -99,7 +101,9 @@ class RunnableChildPart(ChildPart):
 
 
 class MotorMovePart(ChildPart):
-    """Moves a motor block along one axis of the scan, point by point."""
+    """Moves a motor block along one axis of the scan, point by point: to each
+    point's position, then on at the point's deadline (the run's start plus
+    the durations so far, :class:`~malcolm.parts.pacing.Deadlines`)."""
 
     def __init__(self, name: str, mri: str, axis: str) -> None:
         super().__init__(name, mri)
@@ -107,9 +111,9 @@ class MotorMovePart(ChildPart):
 
     def _position(self, device: Any, step: int) -> float | None:
         points = device.points
-        if points is None or self.axis not in points.positions:
+        if points is None or self.axis not in points.axes:
             return None
-        return float(points.positions[self.axis][step])
+        return points.position(self.axis, step)  # one step, not the whole scan
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
@@ -119,13 +123,15 @@ class MotorMovePart(ChildPart):
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
-        durations = device.points.duration
-        for step in range(device.completedSteps, device.configuredSteps):
-            where = self._position(device, step)
+        steps = run_steps(
+            device.points, device.completedSteps, device.configuredSteps, self.axis
+        )
+        deadlines = Deadlines()
+        for step, where, duration in steps:
             if where is not None:
                 await task.put(self.child.demand, where)
-            if durations is not None:
-                await asyncio.sleep(float(durations[step]))
+            if duration is not None:
+                await deadlines.wait(duration)
             task.report_progress(step + 1)
 
     @RunnableDevice.Seek
