@@ -3,9 +3,11 @@
 A run does the steps of the innermost dimensions whose axes are all in
 ``axesToMove``, cut short at the next breakpoint. ``pause(lastGoodStep)``
 follows the reference (pymalcolm's RunnableController.pause): a negative
-(or no) step means the current one, a step at or past the end the last one,
-and a pause that leaves a run waiting (Paused) goes back one step if it would
-land on the end of the run, so that resume always has a step to do.
+(or no) step means the current one, a step at or past the end the last one
+(so a pause of a Finished scan lands Armed on its last step, as the
+reference's does), and a pause that leaves a run waiting (Paused) goes back
+one step if it would land on the end of the run, so that resume always has
+a step to do.
 """
 
 from __future__ import annotations
@@ -154,10 +156,10 @@ def pause_step(
 ) -> int:
     """The step ``pause(lastGoodStep=requested)`` goes back to (the module's
     rules); ``lands_paused``: a run is waiting (the block ends Paused)."""
-    if requested is None or requested < 0:
-        step = completed
-    else:
-        step = min(int(requested), total - 1)
+    step = completed if requested is None or requested < 0 else int(requested)
+    # at or past the end (the current step of a Finished scan is the end):
+    # the last step
+    step = min(step, total - 1)
     if lands_paused and step == configured:
         step -= 1
     return max(0, step)
