@@ -27,6 +27,7 @@ from malcolm.core import (
 from malcolm.core.errors import still_running
 from malcolm.core.threads import call_threadsafe, marshalling
 
+from .origin import on_behalf_of
 from .views import FieldView
 
 if TYPE_CHECKING:
@@ -68,6 +69,11 @@ class Task:
     Subscriptions and futures made through a task live until ``stop()``,
     which the controller calls on abort, disable and reset.
 
+    With an ``origin`` (its controller's mri), every put the task makes, and
+    everything its subscription callbacks do (an awaitable they return
+    included), is made on that block's behalf (:mod:`.origin`), whichever
+    thread or notification started it.
+
     Timeouts follow one rule (docs/embedding.md): a timeout stops the caller
     waiting and raises WaitTimeoutError saying the operation goes on; it
     never cancels a put or a call. ``when_matches`` waits change nothing, so
@@ -79,9 +85,12 @@ class Task:
         process: Process,
         part: str,
         on_progress: Callable[[str, int], None] | None = None,
+        origin: str | None = None,
     ) -> None:
         self.process = process
         self.part = part
+        #: the mri on whose behalf this task writes (None: whoever calls it)
+        self.origin = origin
         self._on_progress = on_progress
         self._futures: set[asyncio.Future[Any]] = set()
         #: the when_matches futures among them (dropped by a wait that gives
@@ -106,7 +115,8 @@ class Task:
         if isinstance(target, Mapping):
             return [self.put_async(t, v) for t, v in target.items()]
         path = target_path(target)
-        return self._track(asyncio.ensure_future(self.process.put(path, value)))
+        with on_behalf_of(self.origin):  # the put's task copies the context
+            return self._track(asyncio.ensure_future(self.process.put(path, value)))
 
     def _track(self, fut: asyncio.Future[Any]) -> asyncio.Future[Any]:
         self._futures.add(fut)
@@ -232,13 +242,18 @@ class Task:
 
     # ---- subscriptions
     def subscribe(self, target: Any, callback: Callable[..., Any], *args: Any) -> int:
-        """Call ``callback(value, *args)`` now and on every change; returns an id."""
+        """Call ``callback(value, *args)`` now and on every change; returns an id.
+
+        The callback (and an awaitable it returns, run as a future of this
+        task) runs on behalf of the task's origin, not of whoever made the
+        change it is told of."""
         path = target_path(target)
 
         def on_value(v: Any) -> None:
-            result = callback(v, *args)
-            if inspect.isawaitable(result):
-                self._track(asyncio.ensure_future(result))
+            with on_behalf_of(self.origin):
+                result = callback(v, *args)
+                if inspect.isawaitable(result):
+                    self._track(asyncio.ensure_future(result))
 
         sid = next(self._ids)
         self._subs[sid] = self.process.subscribe([*path, "value"], on_value, False)
