@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 
 def _blocking_task() -> Any:
-    from .task import current_blocking_task  # task.py imports this module
+    from .blocking import current_blocking_task  # it imports this module
 
     return current_blocking_task()
 
