@@ -42,7 +42,7 @@ from .device import Device
 from .health import Health, describe
 from .interpreter import Interpreter
 from .operations import Operations
-from .writers import OriginTask, PutsInFlight
+from .writers import PutsInFlight
 
 __all__ = ["DEFAULT_PHASE_TIMEOUT", "Controller", "Device"]
 
@@ -180,7 +180,7 @@ class Controller(Interpreter, Operations, Health):
     def make_task(self, part: str) -> Task:
         """The Task a part's hooks get: its puts carry this block's mri."""
         assert self.process is not None
-        return OriginTask(self.process, part, self._on_progress, origin=self.mri)
+        return Task(self.process, part, self._on_progress, origin=self.mri)
 
     def remove_part(self, name: str) -> None:
         """Take a part out: its hooks, the fields and arguments it added, its task."""

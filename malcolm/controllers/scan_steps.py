@@ -3,17 +3,17 @@
 A run does the steps of the innermost dimensions whose axes are all in
 ``axesToMove``, cut short at the next breakpoint. ``pause(lastGoodStep)``
 follows the reference (pymalcolm's RunnableController.pause): a negative
-(or no) step means the current one, a step at or past the end the last one,
-and a pause that leaves a run waiting (Paused) goes back one step if it would
-land on the end of the run, so that resume always has a step to do.
+(or no) step means the current one, a step at or past the end the last one
+(so a pause of a Finished scan lands Armed on its last step, as the
+reference's does), and a pause that leaves a run waiting (Paused) goes back
+one step if it would land on the end of the run, so that resume always has
+a step to do.
 """
 
 from __future__ import annotations
 
 import asyncio
-import copy
 import sys
-import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import accumulate
@@ -25,62 +25,11 @@ if TYPE_CHECKING:  # malcolm.scan (numpy) is imported when a scan is planned
     from malcolm.scan import ScanPoints
 
 
-class PointsCache:
-    """The points of the last few generators given as plain data, so that
-    validate() then configure() (or a configure repeated, or the children a
-    manager configures with the same generator) computes a scan's points
-    once. A generator matches an entry if it is equal to the copy the entry
-    keeps (so a caller changing its dict later changes nothing here). Safe to
-    use from several threads: points are computed outside its lock."""
-
-    def __init__(self, size: int = 4) -> None:
-        self.size = size
-        self._items: list[tuple[Any, ScanPoints]] = []
-        self._lock = threading.Lock()
-
-    def find(self, generator: Any) -> ScanPoints | None:
-        """The points of an equal generator seen before, or None."""
-        if not isinstance(generator, Mapping):
-            return None
-        with self._lock:
-            for i, (seen, points) in enumerate(self._items):
-                try:
-                    equal = bool(seen == generator)
-                except (ValueError, TypeError):  # arrays compare element-wise
-                    equal = False
-                if equal:
-                    if i:
-                        self._items.insert(0, self._items.pop(i))
-                    return points
-        return None
-
-    def known(self, generator: Any) -> bool:
-        """Whether the points of ``generator`` need no computing (they are
-        ScanPoints, or an equal generator's are kept)."""
-        points = sys.modules.get("malcolm.scan.points")  # none made if not loaded
-        if points is not None and isinstance(generator, points.ScanPoints):
-            return True
-        return self.find(generator) is not None
-
-    def points(self, generator: Any) -> ScanPoints:
-        """The points of ``generator`` (GeneratorError if it is not a scan)."""
-        from malcolm.scan import ScanPoints, scan_points
-
-        if isinstance(generator, ScanPoints):
-            return generator
-        found = self.find(generator)
-        if found is None:
-            found = scan_points(generator)
-            if isinstance(generator, Mapping):
-                kept = copy.deepcopy(generator)
-                with self._lock:
-                    self._items.insert(0, (kept, found))
-                    del self._items[self.size :]
-        return found
-
-
-#: shared by every runnable controller of the process
-POINTS = PointsCache()
+def is_scan_points(generator: Any) -> bool:
+    """Whether ``generator`` is ScanPoints already (nothing to compute);
+    never loads malcolm.scan (numpy) to find out."""
+    points = sys.modules.get("malcolm.scan.points")
+    return points is not None and isinstance(generator, points.ScanPoints)
 
 
 @dataclass(frozen=True)
@@ -111,10 +60,11 @@ def plan_scan(
     mri: str, params: Mapping[str, Any], simultaneous_axes: Sequence[str]
 ) -> ScanPlan:
     """Check configure parameters: BadValueError naming what is wrong."""
+    from malcolm.scan import scan_points
     from malcolm.scan.errors import GeneratorError
 
     try:
-        points = POINTS.points(params["generator"])
+        points = scan_points(params["generator"])
         axes = params.get("axesToMove")
         if axes is None:
             axes = list(simultaneous_axes) or None
@@ -135,12 +85,19 @@ def plan_scan(
 async def plan_scan_off_loop(
     mri: str, params: Mapping[str, Any], simultaneous_axes: Sequence[str]
 ) -> ScanPlan:
-    """:func:`plan_scan` in a worker thread, so that the loop (and every other
-    block) stays live while a big scan's points are computed; at once if
-    they are known already. The plan is plain data: the caller applies it on
-    the loop. Cancelling the wait leaves the thread to finish on its own."""
+    """:func:`plan_scan` in a worker thread, so that the
+    loop (and every other block) stays live while a big scan's points are
+    computed; at once if the generator is ScanPoints already. The plan is
+    plain data: the caller applies it on the loop. Cancelling the wait
+    leaves the thread to finish on its own.
+
+    A scan is built once: ``malcolm.scan.scan_points`` keeps the last few
+    it built by content, so configure() after validate() of the same scan,
+    and the children a manager configures with its generator, take the
+    points already built (in the thread: finding them means reading the
+    whole generator, which may be big)."""
     axes = list(simultaneous_axes)
-    if POINTS.known(params.get("generator")):
+    if is_scan_points(params.get("generator")):
         return plan_scan(mri, params, axes)
     return await asyncio.to_thread(plan_scan, mri, dict(params), axes)
 
@@ -154,10 +111,10 @@ def pause_step(
 ) -> int:
     """The step ``pause(lastGoodStep=requested)`` goes back to (the module's
     rules); ``lands_paused``: a run is waiting (the block ends Paused)."""
-    if requested is None or requested < 0:
-        step = completed
-    else:
-        step = min(int(requested), total - 1)
+    step = completed if requested is None or requested < 0 else int(requested)
+    # at or past the end (the current step of a Finished scan is the end):
+    # the last step
+    step = min(step, total - 1)
     if lands_paused and step == configured:
         step -= 1
     return max(0, step)

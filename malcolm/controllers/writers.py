@@ -3,10 +3,11 @@
 A manager holds some child attributes at values (Fixed and Follower rows)
 and must tell its own changes from anyone else's. Every put carries an
 origin, the mri of the block on whose behalf it is made, in the context
-variable :data:`WRITER`: the controller sets it while its hooks run (so
-every put a hook makes, directly or through its Task, carries it) and
-editor parts set it around their own writes. A put made by anyone else
-(another client, a transport) carries None.
+variable :data:`WRITER` (:mod:`malcolm.hooks.origin`): the controller sets
+it while its hooks run, the parts' Tasks and views set it on every write
+they make (from a hook, a worker thread, a thread of their own or a Task
+subscription callback), and editor parts set it around their own writes.
+A put made by anyone else (another client, a transport) carries None.
 
 Each controller keeps the origins of the puts to its fields that are in
 flight (:class:`PutsInFlight`); a change of a field is made by the origin of
@@ -18,23 +19,10 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator
-from contextvars import ContextVar
-from typing import Any
 
-from malcolm.hooks import Task
+from malcolm.hooks.origin import WRITER, writing_as
 
-#: the mri of the block on whose behalf the current code writes, or None
-WRITER: ContextVar[str | None] = ContextVar("malcolm_writer", default=None)
-
-
-@contextlib.contextmanager
-def writing_as(origin: str | None) -> Iterator[None]:
-    """Puts made (and tasks created) inside carry ``origin``."""
-    token = WRITER.set(origin)
-    try:
-        yield
-    finally:
-        WRITER.reset(token)
+__all__ = ["WRITER", "PutsInFlight", "writing_as"]
 
 
 class PutsInFlight:
@@ -63,16 +51,3 @@ class PutsInFlight:
         """The origin of the latest put to ``field`` still in flight, or None."""
         stack = self._origins.get(field)
         return stack[-1][0] if stack else None
-
-
-class OriginTask(Task):
-    """A part's Task whose puts carry its controller's mri as their origin,
-    whichever thread or callback starts them."""
-
-    def __init__(self, *args: Any, origin: str, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.origin = origin
-
-    def put_async(self, target: Any, value: Any = None) -> Any:
-        with writing_as(self.origin):
-            return super().put_async(target, value)

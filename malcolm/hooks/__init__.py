@@ -1,7 +1,8 @@
 """Hook phases: the concurrent phase runner and the Task API parts use."""
 
+from .blocking import BlockingTask
 from .runner import Hook, PhaseError, run_phase
-from .task import BlockingTask, Task, target_path
+from .task import Task, target_path
 from .views import BlockView, FieldView
 
 __all__ = [

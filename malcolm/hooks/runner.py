@@ -18,8 +18,9 @@ from typing import Any
 
 from malcolm.core import AbortedError, MalcolmError, PhaseTimeoutError
 
+from .blocking import BlockingTask
 from .signature import hook_nargs, hook_problem
-from .task import BlockingTask, Task
+from .task import Task
 
 
 @dataclass(frozen=True)

@@ -1,32 +1,29 @@
 """The Task API parts use inside hook functions.
 
 ``Task`` is for ``async def`` hook functions (run on the process's loop);
-``BlockingTask`` gives the same calls, blocking, to plain ``def`` hook
-functions, which run in a worker thread.
+:class:`~malcolm.hooks.blocking.BlockingTask` gives the same calls,
+blocking, to plain ``def`` hook functions, which run in a worker thread.
 """
 
 from __future__ import annotations
 
 import asyncio
-import concurrent.futures
 import inspect
 import itertools
 import logging
-import threading
 import weakref
 from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from malcolm.core import (
-    AbortedError,
     Attribute,
     BadValueError,
     Subscription,
     WaitTimeoutError,
 )
 from malcolm.core.errors import still_running
-from malcolm.core.threads import call_threadsafe, marshalling
 
+from .origin import on_behalf_of
 from .views import FieldView
 
 if TYPE_CHECKING:
@@ -48,15 +45,17 @@ def target_path(target: Any) -> list[str]:
     raise TypeError(f"cannot put to or watch {target!r}: expected a block's field")
 
 
-def _flatten(futures: Iterable[Any]) -> list[Any]:
+def flatten(futures: Iterable[Any]) -> list[Any]:
+    """The futures in ``futures`` and in the lists, tuples, sets and dict
+    values among them, in order; Nones left out."""
     out: list[Any] = []
     for f in futures:
         if f is None:
             continue
         if isinstance(f, Mapping):
-            out.extend(_flatten(f.values()))
+            out.extend(flatten(f.values()))
         elif isinstance(f, list | tuple | set):
-            out.extend(_flatten(f))
+            out.extend(flatten(f))
         else:
             out.append(f)
     return out
@@ -67,6 +66,11 @@ class Task:
 
     Subscriptions and futures made through a task live until ``stop()``,
     which the controller calls on abort, disable and reset.
+
+    With an ``origin`` (its controller's mri), every put the task makes, and
+    everything its subscription callbacks do (an awaitable they return
+    included), is made on that block's behalf (:mod:`.origin`), whichever
+    thread or notification started it.
 
     Timeouts follow one rule (docs/embedding.md): a timeout stops the caller
     waiting and raises WaitTimeoutError saying the operation goes on; it
@@ -79,9 +83,12 @@ class Task:
         process: Process,
         part: str,
         on_progress: Callable[[str, int], None] | None = None,
+        origin: str | None = None,
     ) -> None:
         self.process = process
         self.part = part
+        #: the mri on whose behalf this task writes (None: whoever calls it)
+        self.origin = origin
         self._on_progress = on_progress
         self._futures: set[asyncio.Future[Any]] = set()
         #: the when_matches futures among them (dropped by a wait that gives
@@ -106,7 +113,8 @@ class Task:
         if isinstance(target, Mapping):
             return [self.put_async(t, v) for t, v in target.items()]
         path = target_path(target)
-        return self._track(asyncio.ensure_future(self.process.put(path, value)))
+        with on_behalf_of(self.origin):  # the put's task copies the context
+            return self._track(asyncio.ensure_future(self.process.put(path, value)))
 
     def _track(self, fut: asyncio.Future[Any]) -> asyncio.Future[Any]:
         self._futures.add(fut)
@@ -127,7 +135,7 @@ class Task:
         on, ``when_matches`` waits among them are dropped. If the caller is
         cancelled (abort), what it waited for is cancelled too.
         """
-        flat = _flatten(futures)
+        flat = flatten(futures)
         if not flat:
             return []
         flat = [
@@ -232,13 +240,18 @@ class Task:
 
     # ---- subscriptions
     def subscribe(self, target: Any, callback: Callable[..., Any], *args: Any) -> int:
-        """Call ``callback(value, *args)`` now and on every change; returns an id."""
+        """Call ``callback(value, *args)`` now and on every change; returns an id.
+
+        The callback (and an awaitable it returns, run as a future of this
+        task) runs on behalf of the task's origin, not of whoever made the
+        change it is told of."""
         path = target_path(target)
 
         def on_value(v: Any) -> None:
-            result = callback(v, *args)
-            if inspect.isawaitable(result):
-                self._track(asyncio.ensure_future(result))
+            with on_behalf_of(self.origin):
+                result = callback(v, *args)
+                if inspect.isawaitable(result):
+                    self._track(asyncio.ensure_future(result))
 
         sid = next(self._ids)
         self._subs[sid] = self.process.subscribe([*path, "value"], on_value, False)
@@ -264,125 +277,3 @@ class Task:
             fut.cancel()
         for sid in list(self._subs):
             self.unsubscribe(sid)
-
-
-_current = threading.local()
-
-
-def current_blocking_task() -> BlockingTask | None:
-    """The BlockingTask of the hook function running in this thread, if any."""
-    return getattr(_current, "task", None)
-
-
-class BlockingTask:
-    """The Task API for plain ``def`` hook functions running in a worker thread.
-
-    Every call hands work to the process's loop and blocks until it is done.
-    ``put_async`` and ``when_matches`` return ``concurrent.futures.Future``.
-    When the phase is cancelled (abort, pause, a sibling's error), blocked
-    calls raise AbortedError.
-    """
-
-    def __init__(self, task: Task) -> None:
-        self._task = task
-        self.part = task.part
-        self.process = task.process
-        self.cancelled = False
-        self._inflight: set[concurrent.futures.Future[Any]] = set()
-        self._waits: weakref.WeakSet[concurrent.futures.Future[Any]] = weakref.WeakSet()
-        self._callbacks = concurrent.futures.ThreadPoolExecutor(
-            max_workers=1, thread_name_prefix=f"{task.part}-callbacks"
-        )
-
-    def call(self, func: Callable[..., Any], *args: Any) -> Any:
-        """Run ``func`` in this thread as part of this task (views use it).
-
-        Changes ``func`` makes to block state (``attr.set_value(...)``) are
-        run on the process's loop while this thread waits for them.
-        """
-        previous = current_blocking_task()
-        _current.task = self
-        loop = self.process.loop
-        assert loop is not None
-        try:
-            with marshalling(loop, self._run_on_loop):
-                return func(*args)
-        finally:
-            _current.task = previous
-
-    def _run_on_loop(self, func: Callable[..., Any], *args: Any) -> Any:
-        return self._wait(self._submit(lambda: func(*args)))
-
-    def _submit(self, coro_fn: Callable[[], Any]) -> concurrent.futures.Future[Any]:
-        """Run ``coro_fn()`` on the loop (awaiting what it returns)."""
-        if self.cancelled:
-            raise AbortedError(f"{self.part}: the phase was cancelled")
-        loop = self.process.loop
-        assert loop is not None
-        fut = call_threadsafe(loop, coro_fn)
-        self._inflight.add(fut)
-        fut.add_done_callback(self._inflight.discard)
-        return fut
-
-    def _wait(self, fut: concurrent.futures.Future[Any]) -> Any:
-        try:
-            return fut.result()
-        except concurrent.futures.CancelledError:
-            raise AbortedError(f"{self.part}: the phase was cancelled") from None
-
-    def cancel(self) -> None:
-        """Make blocked and later calls raise AbortedError."""
-        self.cancelled = True
-        for fut in list(self._inflight):
-            fut.cancel()
-
-    # ---- the API
-    def put(self, target: Any, value: Any = None, timeout: float | None = None):
-        self._wait(self._submit(lambda: self._task.put(target, value, timeout)))
-
-    def put_async(self, target: Any, value: Any = None) -> Any:
-        if isinstance(target, Mapping):
-            return [self.put_async(t, v) for t, v in target.items()]
-        return self._submit(lambda: self._task.put(target, value))
-
-    def wait_all(self, *futures: Any, timeout: float | None = None) -> list[Any]:
-        """Block until all are done; the timeout rule is the async Task's."""
-        flat = _flatten(futures)
-        done, pending = concurrent.futures.wait(
-            flat, timeout=timeout, return_when=concurrent.futures.FIRST_EXCEPTION
-        )
-        for f in flat:  # the first error, in the order they were given
-            if f.done() and not f.cancelled() and f.exception() is not None:
-                raise f.exception()  # type: ignore[misc]
-        if pending:
-            for f in pending:  # waits change nothing: drop them; puts go on
-                if f in self._waits:
-                    f.cancel()
-            raise still_running(
-                f"{self.part}: {len(pending)} of {len(flat)} operation(s)", timeout
-            )
-        return [self._wait(f) for f in flat]
-
-    def when_matches(
-        self, target: Any, value: Any, timeout: float | None = None
-    ) -> concurrent.futures.Future[Any]:
-        fut = self._submit(lambda: self._task.when_matches(target, value, timeout))
-        self._waits.add(fut)
-        return fut
-
-    def subscribe(self, target: Any, callback: Callable[..., Any], *args: Any) -> int:
-        def in_thread(v: Any, *a: Any) -> None:
-            self._callbacks.submit(self.call, callback, v, *a)
-
-        return self._wait(
-            self._submit(lambda: self._task.subscribe(target, in_thread, *args))
-        )
-
-    def unsubscribe(self, sid: int) -> None:
-        self._wait(self._submit(lambda: self._task.unsubscribe(sid)))
-
-    def sleep(self, seconds: float) -> None:
-        self._wait(self._submit(lambda: asyncio.sleep(seconds)))
-
-    def report_progress(self, steps: int) -> None:
-        self._wait(self._submit(lambda: self._task.report_progress(steps)))

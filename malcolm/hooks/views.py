@@ -5,6 +5,10 @@ process. ``view.xml.put(v)`` works from a worker thread (plain ``def`` hook
 functions) and is awaitable as ``await view.xml.put_async(v)`` on the loop;
 ``view.configure(...)`` (or ``.call(params, timeout)``) calls a method. A
 timeout stops the wait, never the put or call (docs/embedding.md).
+
+A view made with an ``origin`` (a part's views of its children carry their
+block's mri) makes every put and call on that block's behalf
+(:mod:`.origin`), from whatever thread, task or callback it is used.
 """
 
 from __future__ import annotations
@@ -16,12 +20,14 @@ from typing import TYPE_CHECKING, Any
 
 from malcolm.core.errors import AbortedError, still_running
 
+from .origin import on_behalf_of
+
 if TYPE_CHECKING:
     from malcolm.core import Process
 
 
 def _blocking_task() -> Any:
-    from .task import current_blocking_task  # task.py imports this module
+    from .blocking import current_blocking_task  # it imports this module
 
     return current_blocking_task()
 
@@ -53,12 +59,16 @@ def _in_loop(process: Process) -> bool:
 
 
 class FieldView:
-    """One field of a block, seen through a process."""
+    """One field of a block, seen through a process; writes through it are
+    made on behalf of ``origin`` (an mri) if given."""
 
-    def __init__(self, process: Process, mri: str, name: str) -> None:
+    def __init__(
+        self, process: Process, mri: str, name: str, origin: str | None = None
+    ) -> None:
         self.process = process
         self.mri = mri
         self.name = name
+        self.origin = origin
 
     @property
     def path(self) -> list[str]:
@@ -78,11 +88,16 @@ class FieldView:
         if btask is not None:  # in a hook function: cancelled with its phase
             btask.put(self.path, value, timeout)
             return
-        fut = self.process.call_threadsafe(self.process.put, self.path, value)
+        fut = self.process.call_threadsafe(self.put_async, value)
         _result(fut, timeout, f"put {self.mri}.{self.name}")
 
     async def put_async(self, value: Any) -> None:
-        await self.process.put(self.path, value)
+        with on_behalf_of(self.origin):
+            await self.process.put(self.path, value)
+
+    async def _post(self, params: dict[str, Any]) -> Any:
+        with on_behalf_of(self.origin):
+            return await self.process.post(self.path, params)
 
     def __call__(self, **params: Any) -> Any:
         """Call a method from a worker thread; returns what it returns."""
@@ -99,9 +114,9 @@ class FieldView:
         params = dict(params or {})
         btask = _blocking_task()
         if btask is not None:  # in a hook function: cancelled with its phase
-            fut = btask._submit(lambda: self.process.post(self.path, params))
+            fut = btask._submit(lambda: self._post(params))
             return _result(fut, timeout, f"{self.mri}.{self.name}()", btask)
-        fut = self.process.call_threadsafe(self.process.post, self.path, params)
+        fut = self.process.call_threadsafe(self._post, params)
         return _result(fut, timeout, f"{self.mri}.{self.name}()")
 
     def _check_thread(self, what: str) -> None:
@@ -126,11 +141,13 @@ class FieldView:
 
 
 class BlockView:
-    """A block seen through a process: ``view.field`` gives a FieldView."""
+    """A block seen through a process: ``view.field`` gives a FieldView
+    (writing on behalf of ``origin``, if given)."""
 
-    def __init__(self, process: Process, mri: str) -> None:
+    def __init__(self, process: Process, mri: str, origin: str | None = None) -> None:
         self._process = process
         self.mri = mri
+        self._origin = origin
 
     def __getattr__(self, name: str) -> FieldView:
         if name.startswith("_"):
@@ -138,7 +155,7 @@ class BlockView:
         block = self._process.get_block(self.mri)
         if name not in block:
             raise AttributeError(f"{self.mri} has no field {name!r}")
-        return FieldView(self._process, self.mri, name)
+        return FieldView(self._process, self.mri, name, self._origin)
 
     def __getitem__(self, name: str) -> FieldView:
         return self.__getattr__(name)

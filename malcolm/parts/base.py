@@ -158,8 +158,11 @@ class ChildPart(Part):
 
     @property
     def child(self) -> BlockView:
-        assert self._controller is not None and self._controller.process is not None
-        return BlockView(self._controller.process, self.mri)
+        """The child block; writes through it are made on behalf of this
+        part's block (docs/editor.md, who may change a fixed attribute)."""
+        controller = self._controller
+        assert controller is not None and controller.process is not None
+        return BlockView(controller.process, self.mri, controller.mri)
 
 
 ChildControllerPart = ChildPart

@@ -1,6 +1,7 @@
 """A configure computes its scan's points once (issue 8): not again to check
-the argument, not again for the children a manager configures with the same
-generator, and not again by configure() after validate() of the same scan."""
+the argument, not again for the children a manager validates and configures
+with the same generator, and not again by configure() after validate() of
+the same scan."""
 
 from __future__ import annotations
 
@@ -9,21 +10,22 @@ from typing import Any
 
 import pytest
 
-import malcolm.scan
+import malcolm.scan.load
 from malcolm.demo import demo_generator, demo_process
 
 
 @pytest.fixture
 def computed(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
-    """The generators scan_points computes the points of from now on."""
+    """The generators whose scans are built (their points computed) from now
+    on: ``scan_points`` builds one it has not kept from data."""
     seen: list[Any] = []
-    real = malcolm.scan.scan_points
+    real = malcolm.scan.load.points_from_data
 
     def counting(generator: Any) -> Any:
         seen.append(generator)
         return real(generator)
 
-    monkeypatch.setattr(malcolm.scan, "scan_points", counting)
+    monkeypatch.setattr(malcolm.scan.load, "points_from_data", counting)
     return seen
 
 

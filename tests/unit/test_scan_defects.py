@@ -237,3 +237,24 @@ def test_pause_at_or_past_the_end_from_armed_goes_to_the_last_step():
         assert (block.state.value, steps(block)) == ("Finished", (6, 6, 6))
 
     run(scenario)
+
+
+@pytest.mark.parametrize("args", [{}, {"lastGoodStep": -1}, {"completedSteps": -5}])
+def test_pause_at_the_current_step_of_a_finished_scan_goes_to_the_last_step(args):
+    """The current step of a Finished scan is its end: as for a step past
+    the end, the pause lands Armed on the last step (review A, F4)."""
+
+    async def scenario():
+        process, controller = detector()
+        await process.start()
+        block = controller.block
+        params = {"generator": compound(("y", 3), ("x", 2)), "axesToMove": ["x"]}
+        await process.post(["DET", "configure"], params)
+        await process.put(["DET", "completedSteps"], 6)
+        assert (block.state.value, steps(block)) == ("Finished", (6, 6, 6))
+        await process.post(["DET", "pause"], args)
+        assert (block.state.value, steps(block)) == ("Armed", (6, 5, 6))
+        await process.post(["DET", "run"])
+        assert (block.state.value, steps(block)) == ("Finished", (6, 6, 6))
+
+    run(scenario)

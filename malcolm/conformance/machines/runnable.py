@@ -34,12 +34,11 @@ def pause_targets(
     """Where pause(lastGoodStep=requested) may land: the step clamped to
     [0, total] (the controller before issue 7 item 5), or the reference's
     rule (item 5: a negative step is the current one, one at or past the end
-    the last step, and a pause that lands Paused not on the end of the run)."""
+    the last step, the current one of a Finished scan too, and a pause that
+    lands Paused not on the end of the run)."""
     clamped = completed if requested is None else max(0, min(requested, total))
-    if requested is None or requested < 0:
-        step = completed
-    else:
-        step = min(requested, total - 1)
+    step = completed if requested is None or requested < 0 else requested
+    step = min(step, total - 1)
     if lands_paused and step == configured:
         step -= 1
     return {clamped, max(0, step)}
