@@ -103,6 +103,8 @@ class Capture:
         return self.signals.bit_high(enable.read(), t)  # type: ignore[arg-type]
 
     def _active(self, value: int) -> None:
+        if self.synthetic:
+            return  # tier 1's dumb simulator never drives PCAP.ACTIVE
         active = self.box.by_key.get("PCAP.ACTIVE")
         if active and isinstance(active[0], BitOutField):
             active[0].set_live(value)

@@ -20,6 +20,7 @@ from .values import (
     parse_bit,
     parse_double,
     parse_int,
+    parse_integer,
     parse_uint,
     ticks_to_time,
     time_to_ticks,
@@ -213,9 +214,9 @@ class TimeField(FieldState):
             self.attrs["UNITS"] = text
             self.notify(self.key)  # the value is reported in the new units
         elif name == "RAW":
-            ticks = parse_uint(text) if self.max_ticks <= 0xFFFFFFFF else None
-            if ticks is None:
-                ticks = int(parse_double(text))
+            ticks = parse_integer(text)
+            if not 0 <= ticks <= self.max_ticks:
+                raise Zebra2Error("Number out of range")
             self.ticks = ticks
             self.notify(self.key)
         else:
