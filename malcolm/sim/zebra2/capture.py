@@ -29,6 +29,7 @@ from .values import CLOCK_HZ, Zebra2Error
 BATCH = 65536
 OVERRUN_BYTES = 256 * 1024 * 1024
 OVERRUN_LAG = CLOCK_HZ  # one second of samples not yet made
+KEEP = 1 << 16  # samples kept for late joiners
 SYNTHETIC_PERIOD = CLOCK_HZ // 10  # tier 1's dumb simulator: 10 samples/s
 
 
@@ -54,7 +55,10 @@ class Capture:
         self.columns: list[Column] = []
         self.t_start = 0
         self.t_done = 0
+        self.t_prev = 0  # the last trigger (or the start)
         self.prev_pos: dict[str, int] = {}
+        #: the samples so far, for a client that joins late (up to KEEP)
+        self.kept: list[np.ndarray] = []
         self.arm_iso = self.start_iso = ""
         self.changed = asyncio.Event()
 
@@ -86,6 +90,9 @@ class Capture:
     def disarm(self, t: int) -> None:
         if self.armed:
             self.pump(t, limit=None)
+            if self.synthetic and self.started:
+                # the dumb simulator flushes one more sample when disarmed
+                self._emit(np.array([t], dtype=np.int64))
             self._finish(self.disarm_completion)
 
     def rewire(self, t: int) -> None:
@@ -99,8 +106,7 @@ class Capture:
             self._finish("Ok")
 
     def _enable_high(self, t: int) -> bool:
-        enable = self.box.field("PCAP.ENABLE")
-        return self.signals.bit_high(enable.read(), t)  # type: ignore[arg-type]
+        return self.signals.bit_high(self._mux("PCAP.ENABLE"), t)
 
     def _active(self, value: int) -> None:
         if self.synthetic:
@@ -111,9 +117,10 @@ class Capture:
 
     def _start(self, t: int) -> None:
         self.started = True
-        self.t_start = self.t_done = t
+        self.t_start = self.t_done = self.t_prev = t
         self.start_iso = _iso(time.time_ns())
         self.prev_pos = {}
+        self.kept = []
         header = None
         for client in self.clients:
             if client.taking and client.header:
@@ -143,16 +150,22 @@ class Capture:
     def trigger_ticks(self, t: int, limit: int) -> np.ndarray:
         """Ticks of the next triggers in (t_done, t]."""
         if self.synthetic:
-            k0 = (self.t_done - self.t_start) // SYNTHETIC_PERIOD + 1
-            if self.captured == 0:
-                k0 = 0
-            k1 = min((t - self.t_start) // SYNTHETIC_PERIOD + 1, k0 + limit)
-            return self.t_start + SYNTHETIC_PERIOD * np.arange(k0, k1, dtype=np.int64)
-        trig = self.signals.source(self.box.field("PCAP.TRIG").read())  # type: ignore[arg-type]
-        gate = self.box.field("PCAP.GATE").read()
-        if not isinstance(trig, ClockModel) or not self.signals.bit_high(gate, t):  # type: ignore[arg-type]
+            # tier 1's dumb simulator: a sample every 0.1 s after arming
+            k0 = self.captured
+            k1 = min((t - self.t_start) // SYNTHETIC_PERIOD, k0 + limit)
+            ticks = np.arange(k0 + 1, k1 + 1, dtype=np.int64) * SYNTHETIC_PERIOD
+            return self.t_start + ticks
+        trig = self.signals.source(self._mux("PCAP.TRIG"))
+        if not isinstance(trig, ClockModel) or not self.signals.bit_high(
+            self._mux("PCAP.GATE"), t
+        ):
             return np.zeros(0, dtype=np.int64)
         return trig.rises_between(self.t_done, t, limit)
+
+    def _mux(self, key: str) -> str:
+        value = self.box.field(key).read()
+        assert isinstance(value, str)
+        return value
 
     def pump(self, t: int, limit: int | None = BATCH) -> int:
         """Make and send the samples up to tick ``t``; how many were made."""
@@ -164,14 +177,22 @@ class Capture:
             if len(ticks) == 0:
                 self.t_done = max(self.t_done, t)
                 break
-            words = self.sample_words(ticks)
-            self.t_done = int(ticks[-1])
-            self.captured += len(ticks)
+            self._emit(ticks)
             made += len(ticks)
-            self._send(words)
             if limit is not None:
                 break
         return made
+
+    def _emit(self, ticks: np.ndarray) -> None:
+        words = self.sample_words(ticks)
+        self.t_done = max(self.t_done, int(ticks[-1]))
+        self.t_prev = int(ticks[-1])
+        self.captured += len(ticks)
+        if self.captured <= KEEP:
+            self.kept.append(words)
+        else:
+            self.kept = []
+        self._send(words)
 
     def lagging(self, t: int) -> bool:
         return self.started and t - self.t_done > OVERRUN_LAG
@@ -216,7 +237,7 @@ class Capture:
             return ((sample << np.uint64(8)) | index).astype(np.uint32)
         words = np.zeros((n, nwords), dtype=np.uint32)
         prev = np.empty(n, dtype=np.int64)
-        prev[0] = self.t_done if self.captured else self.t_start
+        prev[0] = self.t_prev
         prev[1:] = ticks[:-1]
         duration = ticks - prev
         for col, off in zip(self.columns, word_offsets(self.columns)):
@@ -284,6 +305,10 @@ class Capture:
                     client.writer.write(
                         client.header_bytes(self.columns, self.arm_iso, self.start_iso)
                     )
+                if self.started and self.kept:
+                    words = np.concatenate(self.kept)
+                    client.writer.write(client.data_bytes(self.columns, words))
+                    client.sent = len(words)
             eof = asyncio.ensure_future(reader.read())
             done = asyncio.ensure_future(client.closed.wait())
             try:

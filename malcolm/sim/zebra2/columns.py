@@ -60,6 +60,7 @@ class Column:
 def build_columns(box: Box) -> list[Column]:
     """The columns of the current capture set, in capture order."""
     first: list[Column] = []
+    stamps: list[Column] = []
     second: list[Column] = []
     bits: list[Column] = []
     samples: list[Column] = []
@@ -75,7 +76,7 @@ def build_columns(box: Box) -> list[Column]:
                 has_samples = True
                 samples.append(Column(state.key, capture, "samples", 1, TICK, 0, "s"))
             else:
-                second.append(Column(state.key, capture, "timestamp", 2, TICK, 0, "s"))
+                stamps.append(Column(state.key, capture, "timestamp", 2, TICK, 0, "s"))
             continue
         assert isinstance(state, PosOutField)
         units = state.attrs.get("UNITS") or None
@@ -90,7 +91,7 @@ def build_columns(box: Box) -> list[Column]:
     implicit = []
     if has_mean and not has_samples:
         implicit = [Column("PCAP.SAMPLES", "Value", "samples", 1, TICK, 0, "s", True)]
-    return implicit + bits + samples + first + second
+    return implicit + bits + samples + first + stamps + second
 
 
 def shown(columns: list[Column], raw: bool) -> list[Column]:
@@ -140,6 +141,7 @@ def scaled_values(columns: list[Column], words: np.ndarray) -> list[np.ndarray]:
         elif col.capture == "Mean":
             with np.errstate(divide="ignore", invalid="ignore"):
                 mean = raw.astype(np.float64) / samples  # type: ignore[operator]
+            mean[samples == 0] = np.nan  # no samples: no mean
             out.append(mean * col.scale + col.offset)
         elif col.capture == "Sum":
             out.append(raw.astype(np.float64) * col.scale)

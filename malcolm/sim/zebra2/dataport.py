@@ -124,8 +124,7 @@ class DataClient:
         if self.format == "Framed":
             return b"BIN " + struct.pack("<I", len(payload) + 8) + payload
         if self.format == "Base64":
-            size = sample_bytes(columns, self.raw)
-            chunk = max(size, (48 // size) * size if size <= 48 else size)
+            chunk = sample_bytes(columns, self.raw)  # one sample per line
             return b"".join(
                 b" " + base64.b64encode(payload[i : i + chunk]) + b"\x00\n"
                 for i in range(0, len(payload), chunk)
