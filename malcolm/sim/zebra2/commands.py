@@ -10,6 +10,7 @@ empty line that ends it.  Replies follow the recorded server: ``OK``,
 from __future__ import annotations
 
 import base64
+import logging
 import re
 import struct
 from collections.abc import Callable
@@ -19,6 +20,8 @@ from .box import Box, ChangeCursor
 from .fields import TableField
 from .layout import GROUPS
 from .values import Zebra2Error, parse_integer
+
+log = logging.getLogger(__name__)
 
 MAX_VALUE = 255
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -113,6 +116,9 @@ class Session:
             return action()
         except Zebra2Error as e:
             return [f"ERR {e}"]
+        except Exception as e:  # a simulator bug: one reply, the box lives on
+            log.exception("zebra2 sim: command failed")
+            return [f"ERR Internal error: {type(e).__name__}"]
 
     def _command(self, line: str) -> Reply:
         if line.strip() == "":
