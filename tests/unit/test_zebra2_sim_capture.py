@@ -247,7 +247,7 @@ async def test_tier2_headers_exact_and_samples_consistent() -> None:
         assert np.allclose(r["mean"] / r["gate"] * 0.5 + 10, a[:, 6])
 
 
-@pytest.mark.parametrize("options", ["NOSUCH", " ASCII", "ASCII FOO"])
+@pytest.mark.parametrize("options", ["NOSUCH", "ASCII FOO", "ASCII\r"])
 @aio
 async def test_invalid_option_line_is_refused(options: str) -> None:
     async with running() as server:

@@ -27,6 +27,7 @@ from .signals import Signals
 from .values import CLOCK_HZ, Zebra2Error
 
 BATCH = 65536
+ASCII_BATCH = 4096
 OVERRUN_BYTES = 256 * 1024 * 1024
 OVERRUN_LAG = CLOCK_HZ  # one second of samples not yet made
 KEEP = 1 << 16  # samples kept for late joiners
@@ -176,6 +177,8 @@ class Capture:
         made = 0
         end = self.end_tick()
         stop = t if end is None else min(t, end)
+        if limit is not None and any(c.format == "ASCII" for c in self.clients):
+            limit = min(limit, ASCII_BATCH)  # printing is slow: keep the loop free
         while True:
             ticks = self.trigger_ticks(stop, limit or BATCH)
             if len(ticks) == 0:
