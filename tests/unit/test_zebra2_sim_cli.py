@@ -56,3 +56,33 @@ def test_a_taken_port_is_a_message_not_a_traceback() -> None:
         _, err = proc.communicate(timeout=30)
     assert proc.returncode == 1
     assert err.startswith("malcolm sim-zebra2: ") and "Traceback" not in err
+
+
+def test_restarts_on_the_same_ports_after_being_killed() -> None:
+    """What a client's reconnection test does: kill the box mid-connection,
+    start it again on the same address, and it answers there."""
+    host = "127.0.0.15"
+    args = ("--host", host, "--control-port", "8888", "--data-port", "8889")
+    first = start(*args)
+    try:
+        assert first.stdout.readline().startswith("zebra2 sim")  # type: ignore[union-attr]
+        client = socket.create_connection((host, 8888), timeout=10)
+        client.sendall(b"PCOMP1.START=5\n")
+        assert client.makefile().readline() == "OK\n"
+        first.kill()
+        first.wait(timeout=20)
+        assert client.recv(100) == b""  # the box went away
+        client.close()
+    finally:
+        first.kill()
+        first.wait()
+    second = start(*args)
+    try:
+        assert second.stdout.readline().startswith("zebra2 sim")  # type: ignore[union-attr]
+        # a fresh box: the value written before the kill is gone
+        assert ask(8888, "PCOMP1.START?", host) == "OK =0"
+        second.send_signal(signal.SIGTERM)
+        assert second.wait(timeout=20) == 0
+    finally:
+        second.kill()
+        second.wait()
