@@ -99,3 +99,47 @@ async def test_pcomp_with_no_counter_makes_no_pulses() -> None:
         assert await wire.ask("PCOMP1.ACTIVE?") == ["OK =1"]
         assert await wire.ask("PCOMP1.STATE?") == ["OK =WAIT_RISING"]
         await wire.close()
+
+
+@aio
+async def test_trig_edges_of_counter_and_pcap() -> None:
+    """COUNTER.TRIG_EDGE=Either counts both edges of a 1 ms clock (high for
+    0.25 ms); PCAP.TRIG_EDGE=Falling samples on the falls."""
+    clock = ManualClock()
+    async with running("tier2", clock=clock) as server:
+        data = DataWire("ASCII")
+        await data.connect(server.data_port)
+        await asyncio.sleep(0.1)
+        wire = await Wire.open(server.control_port)
+        for line in [
+            "CLOCK1.PERIOD.UNITS=ms",
+            "CLOCK1.PERIOD=1",
+            "CLOCK1.WIDTH.UNITS=ms",
+            "CLOCK1.WIDTH=0.25",
+            "COUNTER1.TRIG_EDGE=Either",
+            "COUNTER1.STEP=1",
+            "COUNTER1.TRIG=CLOCK1.OUT",
+            "COUNTER1.ENABLE=ONE",
+            "CLOCK1.ENABLE=ONE",
+            "PCAP.TRIG=CLOCK1.OUT",
+            "PCAP.TRIG_EDGE=Falling",
+            "PCAP.GATE=ONE",
+            "COUNTER1.OUT.CAPTURE=Value",
+            "PCAP.TS_TRIG.CAPTURE=Value",
+            "*PCAP.ARM=",
+            "PCAP.ENABLE=ONE",
+        ]:
+            assert await wire.ask(line) == ["OK"], line
+        clock.advance(0.0101)
+        # 10 rises (1..10 ms; the one at the enabling write's own tick is not
+        # counted) and 10 falls (0.25..9.25 ms)
+        assert await wire.ask("COUNTER1.OUT?") == ["OK =20"]
+        assert await wire.ask("PCAP.ENABLE=ZERO") == ["OK"]
+        await asyncio.sleep(0.1)
+        (rows,) = ascii_samples(data.data)
+        a = np.array(rows)
+        assert len(a) == 10  # falls at 0.25, 1.25, ... 9.25 ms
+        assert np.allclose(a[:, 1], 0.00025 + 0.001 * np.arange(10))
+        assert (a[:, 0] == 1 + 2 * np.arange(10)).all()  # after each fall
+        await wire.close()
+        await data.close()

@@ -20,6 +20,7 @@ from datetime import UTC, datetime
 import numpy as np
 
 from .box import Box
+from .clocks import ClockModel
 from .columns import Column, build_columns, word_offsets
 from .dataport import DataClient
 from .fields import BitOutField, PosOutField
@@ -159,7 +160,11 @@ class Capture:
         trig = self.signals.source(self._mux("PCAP.TRIG"))
         if isinstance(trig, int):
             return np.zeros(0, dtype=np.int64)
-        ticks = trig.rises_between(self.t_done, t, limit)
+        if isinstance(trig, ClockModel):
+            edge = self._mux("PCAP.TRIG_EDGE")
+            ticks = trig.edges_between(self.t_done, t, limit, edge)
+        else:
+            ticks = trig.rises_between(self.t_done, t, limit)
         gate = self.signals.source(self._mux("PCAP.GATE"))
         if isinstance(gate, int):
             return ticks if gate else ticks[:0]

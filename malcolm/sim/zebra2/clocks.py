@@ -2,8 +2,9 @@
 
 A CLOCK enabled at tick ``te`` rises at ``te + k*PERIOD`` (k >= 0) and falls
 ``WIDTH`` later (half the period if WIDTH is 0 or not less than PERIOD).  A
-COUNTER adds ``STEP`` on every rising edge of its TRIG (a clock output)
-while enabled, from ``START`` when enabled.
+COUNTER adds ``STEP`` on every edge of its TRIG (a clock output) that its
+TRIG_EDGE selects (Rising, Falling, Either) while enabled, from ``START``
+when enabled.
 """
 
 from __future__ import annotations
@@ -65,6 +66,41 @@ class ClockModel:
         k1 = min(self.rises_upto(b), k0 + limit)
         return self.te + self.period * np.arange(k0, k1, dtype=np.int64)
 
+    def falls_between(self, a: int, b: int, limit: int) -> np.ndarray:
+        """Ticks of the falling edges in (a, b], at most ``limit`` of them."""
+        if not self.running() or b <= a:
+            return np.zeros(0, dtype=np.int64)
+        k0 = self.falls_upto(a)
+        k1 = min(self.falls_upto(b), k0 + limit)
+        first = self.te + self.width  # type: ignore[operator]
+        return first + self.period * np.arange(k0, k1, dtype=np.int64)
+
+    def edges_between(self, a: int, b: int, limit: int, edge: str) -> np.ndarray:
+        """Ticks of the ``Rising``/``Falling``/``Either`` edges in (a, b]."""
+        if edge == "Rising":
+            return self.rises_between(a, b, limit)
+        if edge == "Falling":
+            return self.falls_between(a, b, limit)
+        both = np.concatenate(
+            [self.rises_between(a, b, limit), self.falls_between(a, b, limit)]
+        )
+        return np.sort(both)[:limit]
+
+    def edges_upto(self, t: int, edge: str) -> int:
+        rises = self.rises_upto(t) if edge != "Falling" else 0
+        return rises + (self.falls_upto(t) if edge != "Rising" else 0)
+
+    def edges_upto_array(self, ticks: np.ndarray, edge: str) -> np.ndarray:
+        out = np.zeros(len(ticks), dtype=np.int64)
+        if not self.running():
+            return out
+        if edge != "Falling":
+            out += self.rises_upto_array(ticks)
+        if edge != "Rising":
+            n = (ticks - self.te - self.width) // self.period + 1
+            out += np.where(ticks >= self.te + self.width, n, 0)  # type: ignore[operator]
+        return out
+
 
 @dataclass
 class CounterModel:
@@ -73,6 +109,7 @@ class CounterModel:
     name: str
     enabled: bool = False
     trig: ClockModel | None = None
+    edge: str = "Rising"  # TRIG_EDGE
     step: int = 0
     value: int = 0
     t: int = 0
@@ -81,13 +118,14 @@ class CounterModel:
         if not self.enabled or self.trig is None:
             return self.value
         return self.value + self.step * (
-            self.trig.rises_upto(t) - self.trig.rises_upto(self.t)
+            self.trig.edges_upto(t, self.edge) - self.trig.edges_upto(self.t, self.edge)
         )
 
     def value_at_array(self, ticks: np.ndarray) -> np.ndarray:
         if not self.enabled or self.trig is None:
             return np.full(len(ticks), self.value, dtype=np.int64)
-        edges = self.trig.rises_upto_array(ticks) - self.trig.rises_upto(self.t)
+        edges = self.trig.edges_upto_array(ticks, self.edge)
+        edges -= self.trig.edges_upto(self.t, self.edge)
         return self.value + self.step * edges
 
 

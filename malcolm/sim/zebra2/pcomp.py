@@ -54,7 +54,12 @@ class PcompModel:
         enabling: bool,
     ) -> None:
         """Take the parameters at tick ``t`` (``enabling``: the enable edge)."""
-        if counter is None or counter.trig is None or not counter.enabled:
+        if (
+            counter is None
+            or counter.trig is None
+            or not counter.enabled
+            or counter.edge != "Rising"
+        ):
             self.clock = None
             return
         self.clock = counter.trig

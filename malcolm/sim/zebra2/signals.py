@@ -92,6 +92,7 @@ class Signals:
             counter.enabled = on
             trig = self.source(self._mux(name, "TRIG"))
             counter.trig = trig if isinstance(trig, ClockModel) else None
+            counter.edge = self._mux(name, "TRIG_EDGE")
             counter.step = self._number(name, "STEP")
         for inst in self.box.instances.get("BITS", []):
             for letter in "ABCD":
