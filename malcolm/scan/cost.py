@@ -15,9 +15,10 @@ nothing; the exceptions are where the work grows with the input:
 counts as `DATA_ITEM_COST` of them, about what reading and checking it costs
 next to evaluating a point); `cheap_to_build` compares it with
 `CHEAP_BUILD_COST`. Whatever is not understood (a typeid not known here, a
-size that is not a number) is costly: the estimate errs on the side of the
-worker thread. Estimating reads at most the first few hundred items of the
-data, so it is cheap itself, and imports nothing (not numpy).
+size a region needs that is not a number) is costly: the estimate errs on
+the side of the worker thread. Estimating reads at most the first few
+hundred items of the data, so it is cheap itself, and imports nothing (not
+numpy).
 """
 
 from __future__ import annotations
@@ -95,25 +96,26 @@ def _count_items(data: Any, limit: float) -> int:
     no further once past ``limit``."""
     count = 0
     stack = [data]
+    push, pop = stack.append, stack.pop
     while stack:
-        value = stack.pop()
+        value = pop()
         kind = type(value)
         if kind is dict:  # the usual case, and the fastest check
             values: Any = value.values()
         elif kind is list or kind is tuple:
             values = value
-        elif kind in _SCALARS:
-            continue
         elif isinstance(value, Mapping):
             values = value.values()
         elif isinstance(value, list | tuple):
             values = value
         else:
-            continue
+            continue  # a number, text, or something scan_points will judge
         count += len(values)
         if count > limit:  # the rest is not looked at
             break
-        stack.extend(v for v in values if type(v) not in _SCALARS)
+        for item in values:
+            if type(item) not in _SCALARS:
+                push(item)
     return count
 
 
@@ -183,20 +185,37 @@ def _evaluated(data: Mapping[str, Any]) -> float:
     excluders = data.get("excluders") or []
     if not isinstance(generators, list) or not isinstance(excluders, list):
         raise TypeError("generators")
+    points = sum(_explicit(g) for g in generators)
+    if not excluders:
+        return points
     sizes = [_size(g) for g in generators]
     owners = {axis: i for i, g in enumerate(generators) for axis in _axes(g)}
-    points = sum(_explicit(g) for g in generators)
     for excluder in excluders:
         spanned = [owners[axis] for axis in excluder["axes"]]
         points += math.prod(sizes[min(spanned) : max(spanned) + 1])
     return points
 
 
+#: The generators whose build evaluates none of their points
+_FORMULAS = frozenset(
+    {
+        "LineGenerator",
+        "SpiralGenerator",
+        "LissajousGenerator",
+        "StaticPointGenerator",
+        "StaticGenerator",
+    }
+)
+
+
 def _explicit(data: Mapping[str, Any]) -> float:
-    """Points given explicitly in one generator dict (an array's)."""
+    """Points given explicitly in one generator dict (an array's); a kind
+    not known here raises (so it counts as costly)."""
     kind = _kind(data)
+    if kind in _FORMULAS:
+        return 0.0
     if kind == "ArrayGenerator":
         return float(len(data["points"]))
     if kind in ("ZipGenerator", "ConcatGenerator"):
         return sum(_explicit(g) for g in _children(data))
-    return 0.0
+    raise ValueError(kind)

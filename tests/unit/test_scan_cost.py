@@ -92,8 +92,8 @@ def test_scanspec_and_what_is_not_understood_are_costly() -> None:
     assert not cheap_to_build(serialized)
     unknown = gda.compound({"typeid": gda.PREFIX + "NewGenerator:9.0", "size": 3})
     assert not cheap_to_build(unknown)
-    bad_size = gda.compound({**gda.line("x", 3), "size": "many"})
-    assert not cheap_to_build(bad_size)
+    bad_size = gda.compound(gda.line("y", 3), {**gda.line("x", 3), "size": "many"})
+    assert not cheap_to_build(with_region(bad_size, circle()))
     lost_axis = with_region(gda.compound(gda.line("x", 3)), circle())  # no y
     assert not cheap_to_build(lost_axis)
 
