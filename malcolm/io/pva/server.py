@@ -96,7 +96,7 @@ class _Channel:
         try:
             self._apply(changes)
         except Exception as e:  # a monitor must never stop the process
-            log.error("pva %s: %s", self.name, _error_text(e))
+            log.exception("pva %s: %s", self.name, _error_text(e))
 
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
