@@ -32,13 +32,24 @@ def free_port(kind: int = socket.SOCK_STREAM) -> int:
         return s.getsockname()[1]
 
 
-def client_conf(udp_port: int) -> dict[str, str]:
-    """p4p/pvAccess client settings that search only 127.0.0.1:``udp_port``."""
-    return {
+def client_conf(udp_port: int, tcp_port: int | None = None) -> dict[str, str]:
+    """p4p/pvAccess client settings that search only 127.0.0.1:``udp_port``
+    by UDP and, given ``tcp_port``, the server there by TCP too
+    (``EPICS_PVA_NAME_SERVERS``).
+
+    Fifty clients searching at once by UDP alone lose replies here and back
+    off for up to 16 s (a bare p4p server too), so the load test needs the
+    TCP search. The client's own UDP port (for beacons) is another one: a
+    unicast search to a port clients have bound too may reach a client.
+    """
+    conf = {
         "EPICS_PVA_ADDR_LIST": f"127.0.0.1:{udp_port}",
         "EPICS_PVA_AUTO_ADDR_LIST": "NO",
-        "EPICS_PVA_BROADCAST_PORT": str(udp_port),
+        "EPICS_PVA_BROADCAST_PORT": str(free_port(socket.SOCK_DGRAM)),
     }
+    if tcp_port:
+        conf["EPICS_PVA_NAME_SERVERS"] = f"127.0.0.1:{tcp_port}"
+    return conf
 
 
 @dataclass
@@ -89,10 +100,10 @@ def server_env(port: int, udp_port: int) -> dict[str, str]:
     return env
 
 
-def launch(*args: str, port: int | None = None) -> Served:
+def launch(*args: str, port: int | None = None, udp_port: int | None = None) -> Served:
     """Start ``python -m malcolm ARGS --pva-port PORT`` (not waiting)."""
     port = port or free_port()
-    udp_port = free_port(socket.SOCK_DGRAM)
+    udp_port = udp_port or free_port(socket.SOCK_DGRAM)
     proc = subprocess.Popen(
         [sys.executable, "-m", "malcolm", *args, "--pva-port", str(port)],
         cwd=ROOT,
@@ -101,7 +112,7 @@ def launch(*args: str, port: int | None = None) -> Served:
         stderr=subprocess.STDOUT,
         text=True,
     )
-    return Served(proc, port, udp_port, client_conf(udp_port), time.monotonic())
+    return Served(proc, port, udp_port, client_conf(udp_port, port), time.monotonic())
 
 
 def wait_ready(served: Served, mri: str = "HELLO") -> float:

@@ -19,6 +19,7 @@ client as ``"<ExceptionType>: <message>"`` and change nothing.
 from __future__ import annotations
 
 import asyncio
+import copy
 import logging
 import os
 import threading
@@ -70,6 +71,22 @@ class _Channel:
         self.sub: Any = None
         self.closed = False
 
+    def prime(self) -> None:
+        """Open the PV at once with a snapshot of its path (in p4p's thread:
+        a client never waits on a PV not yet open); :meth:`open`'s
+        subscription then corrects it, on the loop, if it changed."""
+        for _ in range(5):
+            try:
+                data = copy.deepcopy(self.server.process.get(self.path))
+                break
+            except RuntimeError:  # changed on the loop while read: again
+                continue
+        else:
+            return
+        self.data = self._tagged(data)
+        self.spec = type_spec(self.data)
+        self.pv.open(to_value(self.data))
+
     # ---- on the loop
     def open(self) -> None:
         if self.closed:
@@ -105,7 +122,17 @@ class _Channel:
             if changes[-1] == [[]]:
                 self.server._forget(self)
                 return
+            before = self.data
             self.data = self._tagged(apply_changes(self.data, changes))
+            if before is not None and self.pv.isOpen():
+                if self.data == before:
+                    return  # the snapshot opened with was already current
+                spec = type_spec(self.data)
+                if spec == self.spec:
+                    value = Value(self.pv.current().type())
+                    assign_all(value, self.data, spec)
+                    self.pv.post(value)
+                    return
             self._reopen()
             return
         if any(len(c) == 1 and not c[0] for c in changes):
@@ -153,8 +180,8 @@ class _Channel:
         self.pv.open(value)
 
     def release(self, made: int) -> None:
-        if self.clients == 0 and self.made == made:
-            self.server._forget(self)
+        """Let go of the channel if nobody connected to it since ``made``."""
+        self.server._forget(self, made)
 
     def close(self) -> None:
         self.closed = True
@@ -345,6 +372,7 @@ class PvaServer:
             chan = self._channels.get(name)
             if chan is None:
                 chan = _Channel(self, name, path)
+                chan.prime()
                 self._channels[name] = chan
                 self._call(chan.open)
             chan.made += 1
@@ -358,8 +386,12 @@ class PvaServer:
                 loop.call_later, RELEASE_DELAY, chan.release, made
             )
 
-    def _forget(self, chan: _Channel) -> None:
+    def _forget(self, chan: _Channel, made: int | None = None) -> None:
+        """Drop ``chan``; with ``made``, only if it is still unused since then
+        (checked under the lock makeChannel takes, so no client gets it)."""
         with self._lock:
+            if made is not None and (chan.clients or chan.made != made):
+                return
             if self._channels.get(chan.name) is chan:
                 del self._channels[chan.name]
         chan.close()
