@@ -36,6 +36,7 @@ __all__ = [
     "STRUCTURE",
     "assign",
     "map_to_value",
+    "fits",
     "meta_value_spec",
     "spec_at",
     "to_dict",
@@ -359,3 +360,48 @@ def map_to_value(data: Mapping[str, Any], elements: Any = None) -> Value:
     typeid = data.get("typeid", STRUCTURE)
     spec = _freeze(("S", typeid if isinstance(typeid, str) else STRUCTURE, fields))
     return Value(_type(spec), _fill(spec, data))
+
+
+_INTEGER_CODES = frozenset("bBhHiIlL")
+
+
+def fits(spec: Spec, data: Any, subset: bool = False) -> bool:
+    """Whether ``data`` can be :func:`assign`-ed to a field of type ``spec``
+    as it is (the type it would be given now is the same). ``subset``: a
+    structure may hold fewer fields (a MethodLog's value lists which it
+    holds in ``present``)."""
+    if isinstance(spec, tuple):
+        if not isinstance(data, Mapping):
+            return False
+        if data.get("typeid", STRUCTURE) != spec[1]:
+            return False
+        names = [k for k, _ in spec[2]]
+        keys = [k for k in data if k != "typeid"]
+        if subset:
+            if not set(keys) <= set(names):
+                return False
+        elif keys != names:
+            return False
+        log = spec[1] == _METHOD_LOG
+        return all(
+            fits(sub, data[k], log and k == "value")
+            for k, sub in spec[2]
+            if k in data and data[k] is not None
+        )
+    if spec in ("v", "av"):
+        return spec == "v" or isinstance(data, Sequence | np.ndarray)
+    if spec.startswith("a"):
+        if isinstance(data, str | bytes | Mapping) or not isinstance(
+            data, Sequence | np.ndarray
+        ):
+            return False
+        return all(fits(spec[1:], x) for x in data) if len(data) < 64 else True
+    if spec == "s":
+        return isinstance(data, str)
+    if spec == "?":
+        return isinstance(data, bool | np.bool_)
+    if isinstance(data, bool | np.bool_) or not isinstance(
+        data, int | float | np.number
+    ):
+        return False
+    return spec not in _INTEGER_CODES or isinstance(data, int | np.integer)

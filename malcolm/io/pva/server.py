@@ -38,7 +38,7 @@ from malcolm.core import (
     call_threadsafe,
 )
 
-from .convert import STRUCTURE, assign, spec_at, to_dict, to_value, type_spec
+from .convert import STRUCTURE, assign, fits, spec_at, to_dict, to_value, type_spec
 from .errlog import route_errlog
 from .results import method_args, result_value, version_tag
 
@@ -46,8 +46,6 @@ __all__ = ["PvaServer", "start_pva_server"]
 
 log = logging.getLogger(__name__)
 
-#: structures whose shape never changes, so a new one is set field by field
-_FIXED_SHAPE = frozenset(("alarm_t", "time_t", "display_t"))
 #: seconds a channel nobody is connected to is kept (a client reconnecting)
 RELEASE_DELAY = 2.0
 
@@ -68,6 +66,7 @@ class _Channel:
         self.made = 0  # makeChannel calls, to tell a release is stale
         self.data: Any = None
         self.spec: Any = None
+        self.type: Any = None
         self.sub: Any = None
         self.closed = False
 
@@ -85,7 +84,9 @@ class _Channel:
             return
         self.data = self._tagged(data)
         self.spec = type_spec(self.data)
-        self.pv.open(to_value(self.data))
+        value = to_value(self.data)
+        self.type = value.type()
+        self.pv.open(value)
 
     # ---- on the loop
     def open(self) -> None:
@@ -129,7 +130,7 @@ class _Channel:
                     return  # the snapshot opened with was already current
                 spec = type_spec(self.data)
                 if spec == self.spec:
-                    value = Value(self.pv.current().type())
+                    value = Value(self.type)
                     assign_all(value, self.data, spec)
                     self.pv.post(value)
                     return
@@ -138,7 +139,7 @@ class _Channel:
         if any(len(c) == 1 and not c[0] for c in changes):
             self.server._forget(self)  # the block or field was deleted
             return
-        self.data = self._tagged(apply_changes(self.data, changes))
+        self.data = self._tagged(_apply_changes(self.data, changes))
         posted: list[tuple[list[str], Any, Any]] = []
         reshape = False
         for change in changes:
@@ -152,19 +153,18 @@ class _Channel:
             if sub_spec is None:
                 reshape = True
                 break
-            if isinstance(sub_spec, tuple):
-                data = _at(self.data, path)
-                if not (isinstance(data, dict) and data.get("typeid") in _FIXED_SHAPE):
-                    reshape = True
-                    break
-            posted.append((path, _at(self.data, path), sub_spec))
+            data = _at(self.data, path)
+            if isinstance(sub_spec, tuple) and not fits(sub_spec, data):
+                reshape = True  # a structure of another shape: a new type?
+                break
+            posted.append((path, data, sub_spec))
         if reshape:
             spec = type_spec(self.data)
             if spec != self.spec:
                 self._reopen(spec)
                 return
             posted = [([], self.data, spec)]
-        value = Value(self.pv.current().type())
+        value = Value(self.type)
         for path, data, sub_spec in posted:
             if path:
                 assign(value, path, data, sub_spec)
@@ -175,6 +175,7 @@ class _Channel:
     def _reopen(self, spec: Any = None) -> None:
         self.spec = spec or type_spec(self.data)
         value = to_value(self.data)
+        self.type = value.type()
         if self.pv.isOpen():
             self.pv.close()
         self.pv.open(value)
@@ -244,6 +245,22 @@ class _Channel:
         result = await process.post([mri, method], args)
         returns = process.get([mri, method, "meta", "returns"])
         op.done(result_value(result, returns))
+
+
+def _apply_changes(data: Any, changes: list[list[Any]]) -> Any:
+    """:func:`malcolm.core.apply_changes` for changes below the root, copying
+    only dicts (the only values changed in place later)."""
+    for change in changes:
+        *parents, last = change[0]
+        target = data
+        for key in parents:
+            target = target[key]
+        if len(change) == 1:
+            del target[last]
+        else:
+            new = change[1]
+            target[last] = copy.deepcopy(new) if isinstance(new, dict) else new
+    return data
 
 
 def _at(data: Any, path: Sequence[str]) -> Any:
