@@ -91,6 +91,7 @@ class Bare:
         self.counter_type = to_value(block["counter"]).type()
         self.counter = SharedPV(handler=self, initial=to_value(block["counter"]))
         self.block = SharedPV(initial=to_value(block))
+        self.block_type = to_value(block).type()
         self.greet = SharedPV(handler=self, initial=Value(Type([]), {}))
         self.greet_type = greet_type
         udp = free_port(socket.SOCK_DGRAM)
@@ -114,10 +115,17 @@ class Bare:
         op.done()
 
     def set(self, number: float) -> None:
+        """As a served block's attribute changes: its channel and the block's
+        channel each get the value and timeStamp."""
+        stamp = now_stamp()
         value = Value(self.counter_type)
         value["value"] = number
-        value["timeStamp"] = now_stamp()
+        value["timeStamp"] = stamp
         self.counter.post(value)
+        whole = Value(self.block_type)
+        whole["counter.value"] = number
+        whole["counter.timeStamp"] = stamp
+        self.block.post(whole)
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
         name = op.value()["name"]

@@ -110,6 +110,11 @@ class _Channel:
                 meta["tags"] = [*tags, version_tag()]
         return data
 
+    def _meta_changed(self, changes: list[list[Any]]) -> bool:
+        if self.path[1:] == ["meta"]:
+            return True
+        return len(self.path) == 1 and any(c[0][:1] == ["meta"] for c in changes)
+
     def _on_changes(self, changes: list[list[Any]]) -> None:
         try:
             self._apply(changes)
@@ -139,7 +144,9 @@ class _Channel:
         if any(len(c) == 1 and not c[0] for c in changes):
             self.server._forget(self)  # the block or field was deleted
             return
-        self.data = self._tagged(_apply_changes(self.data, changes))
+        self.data = _apply_changes(self.data, changes)
+        if self._meta_changed(changes):
+            self._tagged(self.data)
         posted: list[tuple[list[str], Any, Any]] = []
         reshape = False
         for change in changes:
@@ -259,7 +266,14 @@ def _apply_changes(data: Any, changes: list[list[Any]]) -> Any:
             del target[last]
         else:
             new = change[1]
-            target[last] = copy.deepcopy(new) if isinstance(new, dict) else new
+            target[last] = _copy_dicts(new) if isinstance(new, dict) else new
+    return data
+
+
+def _copy_dicts(data: Any) -> Any:
+    """A copy of the dicts in ``data`` (what is later changed in place)."""
+    if isinstance(data, dict):
+        return {k: _copy_dicts(v) for k, v in data.items()}
     return data
 
 
