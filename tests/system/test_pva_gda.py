@@ -170,3 +170,17 @@ def test_gda_sequence(ctx):
     first_row = values[: values.index(4) + 1]
     assert first_row == list(range(5)), seen_steps
     assert seen_steps[-1] == ctx.get("SCAN.completedSteps", timeout=5)["value"]
+
+
+def test_a_malformed_generator_is_refused_naming_where(ctx):
+    bad = Value(
+        Type([("generators", "av"), ("duration", "d")], id=COMPOUND.getID()),
+        {"generators": [Value(Type([("size", "s")], id=f"{SPG}/Nothing:1.0"))]},
+    )
+    args = Value(Type([("generator", bad.type().aspy()), ("axesToMove", "as")]))
+    args["generator"] = bad
+    with pytest.raises(RemoteError, match=r"^BadValueError: .*generators\[0\]"):
+        call(ctx, "validate", args)
+    with pytest.raises(RemoteError, match=r"^BadValueError: .*SCAN.validate.*nope"):
+        call(ctx, "validate", Value(Type([("nope", "i")]), {"nope": 1}))
+    assert ctx.get("SCAN.state", timeout=5)["value"] == "Ready"  # still serving
