@@ -215,35 +215,24 @@ class _Channel:
     # ---- operations, on the loop
     async def _put(self, op: Any) -> None:
         value = op.value()
-        changed = sorted(value.changedSet())
-        where = self.name
-        if not changed:
-            raise BadValueError(f"{where}: a put must set a value")
         mri = self.path[0]
-        puts: list[tuple[str, Any]] = []
-        for dotted in changed:
+        puts: dict[str, Any] = {}  # field -> new value, in the order given
+        for dotted in sorted(value.changedSet()):
             parts = dotted.split(".")
             if len(self.path) == 2:
-                field, rest = self.path[1], parts
+                field, rest, prefix = self.path[1], parts, ""
             else:
-                field, rest = parts[0], parts[1:]
+                field, rest, prefix = parts[0], parts[1:], f"{parts[0]}."
             if rest[:1] != ["value"]:
                 raise BadValueError(
                     f"{mri}.{'.'.join([field, *rest])}: only a value can be put"
                 )
-            if (field, "value") not in [(f, "value") for f, _ in puts]:
-                puts.append(
-                    (
-                        field,
-                        to_dict(
-                            value[f"{field}.value"]
-                            if len(self.path) == 1
-                            else value["value"]
-                        ),
-                    )
-                )
-        for field, new in puts:
-            await self.server.process.put([mri, field], _plain_put(new))
+            if field not in puts:
+                puts[field] = _plain_put(to_dict(value[f"{prefix}value"]))
+        if not puts:
+            raise BadValueError(f"{self.name}: a put must set a value")
+        for field, new in puts.items():
+            await self.server.process.put([mri, field], new)
         op.done()
 
     async def _rpc(self, op: Any) -> None:
