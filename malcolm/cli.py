@@ -232,6 +232,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     serve.set_defaults(func=cmd_serve)
 
+    from malcolm.io.pva.client_cli import add_parsers as add_pva_client
+
+    add_pva_client(commands)  # get, put, call, ls (docs/pva-client.md)
     return parser
 
 
