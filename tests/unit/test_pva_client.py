@@ -218,3 +218,23 @@ def test_addresses():
         parse_address("h:x")
     with pytest.raises(ValueError, match="out of range"):
         parse_address("h:70000")
+
+
+def test_the_block_list_names_the_other_blocks():
+    from malcolm.core import NotWriteableError
+    from malcolm.io.pva.client_blocklist import add_block_list
+
+    async def main():
+        process = Process("a")
+        process.add_controller(StatefulController("COUNTER", [CounterPart("c")]))
+        block_list = add_block_list(process)
+        await process.start()
+        assert process.get(["localhost", "blocks", "value"]) == ["COUNTER"]
+        process.add_controller(StatefulController("LATER", []))
+        block_list.refresh()
+        assert process.get(["localhost", "blocks", "value"]) == ["COUNTER", "LATER"]
+        with pytest.raises(NotWriteableError, match="localhost.blocks is read-only"):
+            await process.put(["localhost", "blocks"], ["x"])
+        await process.stop()
+
+    asyncio.run(main())

@@ -151,6 +151,8 @@ def _split(path: str, what: str | None) -> tuple[str, str | None]:
 
 
 async def _within(args: argparse.Namespace, where: str, aw: Any) -> Any:
+    from malcolm.core import MalcolmError
+
     timeout = args.timeout if args.timeout and args.timeout > 0 else None
     try:
         return await asyncio.wait_for(aw, timeout)
@@ -159,6 +161,15 @@ async def _within(args: argparse.Namespace, where: str, aw: Any) -> Any:
             f"{where}: no answer within {args.timeout} s (is a server there,"
             " and does it have that block?)"
         ) from None
+    except MalcolmError as e:
+        text = str(e)
+        if text.startswith(f"{where}: "):
+            text = text[len(where) + 2 :]
+        from .client_convert import RemoteError
+
+        if not isinstance(e, RemoteError):  # its text names its type already
+            text = f"{type(e).__name__}: {text}"
+        raise CliError(f"{where}: {text}") from None
 
 
 async def _block(backend: Any, args: argparse.Namespace, mri: str) -> dict[str, Any]:
@@ -252,6 +263,9 @@ async def _get(backend: Any, args: argparse.Namespace) -> str:
 
 
 async def _put(backend: Any, args: argparse.Namespace) -> str:
+    from malcolm.core import BadValueError, from_dict
+    from malcolm.core.metas import plain
+
     from .convert import to_dict
 
     mri, name = _split(args.path, "FIELD")
@@ -260,8 +274,16 @@ async def _put(backend: Any, args: argparse.Namespace) -> str:
     d = _field(backend, data, mri, name)
     if _is_method(d):
         raise CliError(f"{backend.where(mri)}.{name} is a method: use malcolm call")
-    value = _parse(args.value, d.get("meta") if isinstance(d, dict) else None)
+    meta_d = d.get("meta") if isinstance(d, dict) else None
+    value = _parse(args.value, meta_d)
     channel = f"{mri}.{name}"
+    try:
+        meta = from_dict(meta_d, name)
+        if not meta.writeable:
+            raise CliError(f"{backend.where(channel)} is read-only")
+        value = plain(meta.validate(value))
+    except BadValueError as e:
+        raise CliError(f"{backend.where(channel)}: {e}") from None
     await _within(args, backend.where(channel), backend.put(channel, {"value": value}))
     after = to_dict(await _within(args, backend.where(channel), backend.get(channel)))
     if args.json:

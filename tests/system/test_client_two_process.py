@@ -1,0 +1,113 @@
+"""Two processes (issue 9's acceptance): process B's manager uses blocks of
+process A through ``client.`` sections with ``fullname: pva://HOST:PORT/MRI``
+and runs a scan through them; killing A shows INVALID alarms and ``health``
+in B within a bounded time; restarting A recovers B, which was never
+restarted, and B scans again. A is the demo served in a subprocess
+(test_client_cli.serve_demo); B runs here, on this test's loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+from malcolm.config.build import build_definition
+from malcolm.core import AlarmSeverity, AlarmStatus, Process
+from malcolm.scan import gda
+
+from .test_client_cli import free_port, serve_demo, stop
+
+#: how long B may take to see A gone (A's sockets close when it dies)
+LOST_WITHIN = 10.0
+#: how long B may take to find A again (p4p retries its name server)
+BACK_WITHIN = 40.0
+
+B_DEFINITION = """\
+controller.RunnableController:
+    description: B's scan of A's detector and motor
+
+client.demo.Detector:
+    name: DET
+    fullname: pva://127.0.0.1:{port}/DET1
+    part: RunnableChildPart
+
+client.demo.Motor:
+    name: x
+    fullname: pva://127.0.0.1:{port}/MOTOR:X
+    part: MotorMovePart
+    axis: x
+"""
+
+
+async def wait_for(predicate, what: str, timeout: float) -> None:
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    while not predicate():
+        if loop.time() > end:
+            raise AssertionError(f"not within {timeout} s: {what}")
+        await asyncio.sleep(0.05)
+
+
+async def scan(process: Process, size: int) -> None:
+    generator = gda.compound(gda.line("x", size, start=0, stop=2), duration=0.01)
+    await process.post(
+        ["BSCAN", "configure"], {"generator": generator, "axesToMove": ["x"]}
+    )
+    await process.post(["BSCAN", "run"])
+
+
+def test_a_manager_scans_through_blocks_of_another_process(tmp_path):
+    port = free_port()
+    definition = tmp_path / "B.yaml"
+    definition.write_text(B_DEFINITION.format(port=port))
+    a = serve_demo(port)
+    b = build_definition(definition, mri="BSCAN")
+    assert b.mris == ["DET1", "MOTOR:X", "BSCAN"]
+
+    async def main():
+        nonlocal a
+        await b.start()
+        try:
+            det, motor, manager = (b.get_block(m) for m in b.mris)
+            assert det.state.value == "Ready" and manager.state.value == "Ready"
+            # a scan through A: B's manager configures and runs A's DET1
+            await scan(b, 5)
+            assert manager.state.value == "Finished"
+            assert manager.completedSteps.value == 5
+            await wait_for(lambda: det.completedSteps.value == 5, "DET1 done", 10)
+            assert det.state.value == "Finished" and det.totalSteps.value == 5
+            await wait_for(lambda: motor.position.value == 2.0, "x at 2", 10)
+
+            # A dies: every attribute of its mirrors INVALID, health says so
+            stop(a)
+            lost = f"pva://127.0.0.1:{port}/DET1: connection lost"
+            await wait_for(lambda: det.health.value == lost, lost, LOST_WITHIN)
+            for block in (det, motor):
+                for name, attr in block.attributes.items():
+                    assert attr.alarm.severity is AlarmSeverity.INVALID_ALARM, name
+                    assert attr.alarm.status is AlarmStatus.CLIENT_STATUS, name
+            assert motor.health.value.endswith("MOTOR:X: connection lost")
+            assert not det.configure.meta.writeable  # nothing can be called
+
+            # A comes back (new values): B's mirrors refresh, alarms clear
+            a = serve_demo(port)
+            await wait_for(lambda: det.health.value == "OK", "DET1 back", BACK_WITHIN)
+            await wait_for(lambda: motor.health.value == "OK", "x back", BACK_WITHIN)
+            assert det.state.value == "Ready" and det.completedSteps.value == 0
+            assert motor.position.value == 0.0
+            for block in (det, motor):
+                for name, attr in block.attributes.items():
+                    assert attr.alarm.severity is AlarmSeverity.NO_ALARM, name
+            assert det.configure.meta.writeable
+
+            # and B, never restarted, scans through it again
+            await scan(b, 3)
+            assert manager.state.value == "Finished"
+            assert manager.completedSteps.value == 3
+            await wait_for(lambda: det.completedSteps.value == 3, "DET1 done", 10)
+        finally:
+            await b.stop()
+
+    try:
+        asyncio.run(main())
+    finally:
+        stop(a)
