@@ -10,15 +10,24 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
+
 from malcolm.config.build import build_definition
-from malcolm.core import AlarmSeverity, AlarmStatus, Process
+from malcolm.core import (
+    AbortedError,
+    AlarmSeverity,
+    AlarmStatus,
+    MalcolmError,
+    NotAllowedError,
+    Process,
+)
 from malcolm.scan import gda
 
 from .test_client_cli import free_port, serve_demo, stop
 
 #: how long B may take to see A gone (A's sockets close when it dies)
 LOST_WITHIN = 10.0
-#: how long B may take to find A again (p4p retries its name server)
+#: how long B may take to find A again (it tries A's port every 0.5 s)
 BACK_WITHIN = 40.0
 
 B_DEFINITION = """\
@@ -104,6 +113,113 @@ def test_a_manager_scans_through_blocks_of_another_process(tmp_path):
             assert manager.state.value == "Finished"
             assert manager.completedSteps.value == 3
             await wait_for(lambda: det.completedSteps.value == 3, "DET1 done", 10)
+        finally:
+            await b.stop()
+
+    try:
+        asyncio.run(main())
+    finally:
+        stop(a)
+
+
+DET_ONLY = """\
+controller.RunnableController:
+    description: B's scan of A's detector
+
+client.demo.Detector:
+    name: DET
+    fullname: pva://127.0.0.1:{port}/DET1
+    part: RunnableChildPart
+"""
+
+
+def det_only(tmp_path, port: int) -> Process:
+    definition = tmp_path / "B.yaml"
+    definition.write_text(DET_ONLY.format(port=port))
+    return build_definition(definition, mri="BSCAN")
+
+
+async def configure(process: Process, size: int, duration: float) -> None:
+    generator = gda.compound(gda.line("x", size), duration=duration)
+    await process.post(
+        ["BSCAN", "configure"], {"generator": generator, "axesToMove": ["x"]}
+    )
+
+
+def test_pause_resume_abort_reset_of_a_remote_child(tmp_path):
+    port = free_port()
+    a = serve_demo(port)
+    b = det_only(tmp_path, port)
+
+    async def main():
+        await b.start()
+        try:
+            det, manager = b.get_block("DET1"), b.get_block("BSCAN")
+            await configure(b, 40, 0.05)
+            assert det.state.value == "Armed" and det.totalSteps.value == 40
+            run = asyncio.ensure_future(b.post(["BSCAN", "run"]))
+            await wait_for(lambda: det.completedSteps.value >= 3, "3 steps", 20)
+            await b.post(["BSCAN", "pause"], {"lastGoodStep": 2})
+            assert manager.state.value == "Paused"
+            await wait_for(lambda: det.state.value == "Paused", "DET1 Paused", 10)
+            assert det.completedSteps.value == 2
+            assert not run.done()  # the run waits for resume
+            await b.post(["BSCAN", "resume"])
+            await asyncio.wait_for(run, 30)
+            assert manager.state.value == "Finished"
+            await wait_for(lambda: det.state.value == "Finished", "DET1 done", 10)
+            assert det.completedSteps.value == 40
+
+            await configure(b, 40, 0.05)
+            run = asyncio.ensure_future(b.post(["BSCAN", "run"]))
+            await wait_for(lambda: det.completedSteps.value >= 2, "2 steps", 20)
+            await b.post(["BSCAN", "abort"])
+            with pytest.raises(AbortedError):
+                await run
+            assert manager.state.value == "Aborted"
+            await wait_for(lambda: det.state.value == "Aborted", "DET1 Aborted", 10)
+            await b.post(["BSCAN", "reset"])
+            assert manager.state.value == "Ready"
+            await wait_for(lambda: det.state.value == "Ready", "DET1 Ready", 10)
+            # a remote refusal comes back as its own error, with its text
+            with pytest.raises(NotAllowedError, match=r"DET1: run\(\) is not allowed"):
+                await b.post(["DET1", "run"])
+        finally:
+            await b.stop()
+
+    try:
+        asyncio.run(main())
+    finally:
+        stop(a)
+
+
+def test_a_server_lost_in_the_middle_of_a_scan(tmp_path):
+    port = free_port()
+    a = serve_demo(port)
+    b = det_only(tmp_path, port)
+
+    async def main():
+        nonlocal a
+        await b.start()
+        try:
+            det, manager = b.get_block("DET1"), b.get_block("BSCAN")
+            await configure(b, 200, 0.05)
+            run = asyncio.ensure_future(b.post(["BSCAN", "run"]))
+            await wait_for(lambda: det.completedSteps.value >= 2, "2 steps", 20)
+            stop(a)
+            with pytest.raises(MalcolmError, match="DET1"):
+                await asyncio.wait_for(run, LOST_WITHIN)
+            assert manager.state.value == "Fault"
+            assert "DET1" in manager.health.value
+            assert det.health.value.endswith("DET1: connection lost")
+            # A again: B's manager resets (never restarted) and scans again
+            a = serve_demo(port)
+            await wait_for(lambda: det.health.value == "OK", "DET1 back", BACK_WITHIN)
+            await b.post(["BSCAN", "reset"])
+            assert manager.state.value == "Ready"
+            await configure(b, 4, 0.01)
+            await b.post(["BSCAN", "run"])
+            assert manager.state.value == "Finished"
         finally:
             await b.stop()
 

@@ -24,6 +24,7 @@ holding a thread.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import partial
@@ -61,6 +62,10 @@ DEFAULT_PORT = 5075
 #: seconds without a reply before p4p gives a connection up (pvxs: echo
 #: every CONN_TMO/2 s); a killed server is seen at once (its socket closes)
 CONN_TMO = 4.0
+#: seconds between tries of a lost server's port (see PvaBackend.watch)
+REVIVE_INTERVAL = 0.5
+#: seconds a renewed context has to connect before the port is tried again
+RENEW_GRACE = 3.0
 
 
 def parse_address(address: str) -> tuple[str, int]:
@@ -136,6 +141,25 @@ class PvaChannel(Channel):
             handler=partial(self._woken, loop),
             pvRequest=None,
         )
+        self.backend.watch(self)
+
+    def _renew(self) -> None:
+        """Subscribe again, on the backend's new context (see
+        :meth:`PvaBackend.watch`); the next update is the whole structure."""
+        sub, self._sub = self._sub, None
+        if sub is not None:
+            sub.close()
+        self._fresh = True
+        context = self.backend.context()
+        loop = self._loop
+        assert loop is not None
+        self._sub = raw.Subscription(
+            context._ctxt,
+            self.read,
+            context._nt,
+            handler=partial(self._woken, loop),
+            pvRequest=None,
+        )
 
     def _woken(self, loop: asyncio.AbstractEventLoop) -> None:
         # a p4p thread: the queue has something; drain it on the loop
@@ -156,6 +180,8 @@ class PvaChannel(Channel):
                     message = f"{type(item).__name__}: {item}"
                 if self._state is ConnectionState.CONNECTED:
                     self._set_state(ConnectionState.DISCONNECTED, message)
+                    self.backend.fail_pending(message)
+                    self.backend.watch(self)
                 else:
                     self._message = message
                 continue
@@ -234,6 +260,9 @@ class PvaBackend(Backend):
         self.address = address
         self._contexts: dict[str | None, raw.Context] = {}
         self._channels: list[PvaChannel] = []
+        self._revivers: dict[str, asyncio.Future[None]] = {}
+        #: address -> operations in flight there (future -> what)
+        self._pending: dict[str | None, dict[asyncio.Future[Any], str]] = {}
 
     def for_address(self, address: str | None) -> PvaBackend:
         """A view of this backend whose channels and calls go to ``address``
@@ -242,7 +271,56 @@ class PvaBackend(Backend):
         view.address = address
         view._contexts = self._contexts
         view._channels = self._channels
+        view._revivers = self._revivers
+        view._pending = self._pending
         return view
+
+    # ---- finding a server that went away, or is not there yet
+    def _waiting(self, address: str) -> list[PvaChannel]:
+        return [
+            c
+            for c in self._channels
+            if c.backend.address == address
+            and c.state in (ConnectionState.CONNECTING, ConnectionState.DISCONNECTED)
+        ]
+
+    def watch(self, channel: PvaChannel) -> None:
+        """Look for the server of ``channel``, which is not connected (on the
+        loop). p4p retries a name server only every 10 s or so: instead, every
+        :data:`REVIVE_INTERVAL` s the backend tries the server's TCP port and,
+        once it answers, makes a new context for that address and subscribes
+        its channels again, which connect at once."""
+        address = self.address
+        if address is None:
+            return
+        task = self._revivers.get(address)
+        if task is None or task.done():
+            self._revivers[address] = asyncio.ensure_future(self._revive(address))
+
+    async def _revive(self, address: str) -> None:
+        host, port = parse_address(address)
+        await asyncio.sleep(REVIVE_INTERVAL)
+        while self._waiting(address):
+            try:
+                _, writer = await asyncio.wait_for(
+                    asyncio.open_connection(host, port), REVIVE_INTERVAL
+                )
+            except (OSError, TimeoutError):
+                await asyncio.sleep(REVIVE_INTERVAL)
+                continue
+            writer.close()
+            with contextlib.suppress(OSError):
+                await writer.wait_closed()
+            waiting = self._waiting(address)
+            if not waiting:
+                return
+            old = self._contexts.pop(address, None)
+            for channel in [c for c in self._channels if c.backend.address == address]:
+                if channel.state is not ConnectionState.CLOSED:
+                    channel._renew()
+            if old is not None:
+                old.close()
+            await asyncio.sleep(RENEW_GRACE)  # time to connect before trying again
 
     def where(self, name: str = "") -> str:
         """``pva://host:port/name``, as messages name a channel."""
@@ -290,10 +368,25 @@ class PvaBackend(Backend):
                 call_threadsafe(loop, done, result)
 
         op = start(handler)
+        pending = self._pending.setdefault(self.address, {})
+        pending[future] = what
         try:
             return await future
         finally:
+            pending.pop(future, None)
             op.close()
+
+    def fail_pending(self, message: str) -> None:
+        """Fail every get, put and call in flight to this address (its
+        connection was lost: p4p would keep them waiting for the server)."""
+        for future, what in list(self._pending.get(self.address, {}).items()):
+            if not future.done():
+                future.set_exception(
+                    DisconnectedError(
+                        f"{what}: {message} before it was done (whether the server"
+                        " did it is not known)"
+                    )
+                )
 
     async def get(self, name: str, request: str | None = None) -> Value:
         """The current value of channel ``name``."""
@@ -321,6 +414,9 @@ class PvaBackend(Backend):
         )
 
     async def close(self) -> None:
+        for task in self._revivers.values():
+            task.cancel()
+        self._revivers.clear()
         for channel in list(self._channels):
             await channel.close()
         self._channels.clear()
