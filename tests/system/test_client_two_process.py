@@ -9,6 +9,8 @@ restarted, and B scans again. A is the demo served in a subprocess
 from __future__ import annotations
 
 import asyncio
+import os
+import signal
 
 import pytest
 
@@ -226,4 +228,36 @@ def test_a_server_lost_in_the_middle_of_a_scan(tmp_path):
     try:
         asyncio.run(main())
     finally:
+        stop(a)
+
+
+def test_a_server_that_stops_answering(tmp_path):
+    """A server that hangs (SIGSTOP: its sockets stay open) is seen as lost
+    once p4p's echo goes unanswered (CONN_TMO), and found when it answers."""
+    port = free_port()
+    a = serve_demo(port)
+    b = det_only(tmp_path, port)
+
+    async def main():
+        await b.start()
+        try:
+            det = b.get_block("DET1")
+            assert det.health.value == "OK"
+            os.kill(a.pid, signal.SIGSTOP)
+            lost = f"pva://127.0.0.1:{port}/DET1: connection lost"
+            await wait_for(lambda: det.health.value == lost, lost, LOST_WITHIN)
+            assert det.state.alarm.severity is AlarmSeverity.INVALID_ALARM
+            os.kill(a.pid, signal.SIGCONT)
+            await wait_for(lambda: det.health.value == "OK", "DET1 back", BACK_WITHIN)
+            assert det.state.alarm.severity is AlarmSeverity.NO_ALARM
+            await configure(b, 2, 0.01)
+            await b.post(["BSCAN", "run"])
+            assert b.get_block("BSCAN").state.value == "Finished"
+        finally:
+            await b.stop()
+
+    try:
+        asyncio.run(main())
+    finally:
+        os.kill(a.pid, signal.SIGCONT)
         stop(a)
