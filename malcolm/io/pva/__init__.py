@@ -6,3 +6,7 @@
 
 See docs/pva.md.
 """
+
+from .server import PvaServer, start_pva_server
+
+__all__ = ["PvaServer", "start_pva_server"]

@@ -35,6 +35,7 @@ __all__ = [
     "DTYPE_CODES",
     "STRUCTURE",
     "assign",
+    "map_to_value",
     "meta_value_spec",
     "spec_at",
     "to_dict",
@@ -342,3 +343,19 @@ def spec_at(spec: Spec, path: Sequence[str]) -> Spec | None:
         else:
             return None
     return spec
+
+
+def map_to_value(data: Mapping[str, Any], elements: Any = None) -> Value:
+    """A plain structure (method arguments or results) as a ``Value``; fields
+    that ``elements`` (a MapMeta's elements) describe are typed by their meta,
+    the others by what they hold."""
+    elements = elements if isinstance(elements, Mapping) else {}
+    fields = []
+    for key, sub in data.items():
+        if key == "typeid":
+            continue
+        meta = elements.get(key)
+        fields.append((key, meta_value_spec(meta) if meta else _infer(sub)))
+    typeid = data.get("typeid", STRUCTURE)
+    spec = _freeze(("S", typeid if isinstance(typeid, str) else STRUCTURE, fields))
+    return Value(_type(spec), _fill(spec, data))
