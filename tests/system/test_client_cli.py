@@ -1,75 +1,39 @@
-"""``malcolm get|put|call|ls`` against a demo process served over pvAccess
-in a subprocess (run under ../shared/tools/isolated: loopback only).
+"""``malcolm get|put|call|ls`` against the demo served over pvAccess
+(``malcolm demo --pva-port PORT`` in a subprocess, tests/system/conftest.py;
+run under ../shared/tools/isolated: loopback only).
 
-The served process (:func:`serve_demo`) is shared with
-test_client_two_process.py: the demo's blocks, the ``localhost`` block list,
-and the pvAccess server on a free port.
+:func:`serve_demo` and :func:`stop` are shared with the other
+test_client*.py modules.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import socket
 import subprocess
 import sys
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
-# the served side is the pvAccess server's (branch pva-server)
-pytest.importorskip("malcolm.io.pva.server")
-
-ROOT = Path(__file__).resolve().parents[2]
-
-SERVE_A = """
-import asyncio, sys
-from malcolm.demo import demo_process
-from malcolm.io.pva.client_blocklist import add_block_list
-from malcolm.io.pva.server import start_pva_server
-
-async def main():
-    process = demo_process()
-    add_block_list(process)
-    await process.start()
-    await start_pva_server(process, int(sys.argv[1]))
-    print("ready", flush=True)
-    await asyncio.Event().wait()
-
-asyncio.run(main())
-"""
+from .conftest import ROOT, Served, free_port, launch, wait_ready
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def serve_demo(port: int) -> Served:
+    """``malcolm demo`` serving pvAccess on ``port``, once a get succeeds."""
+    served = launch("demo", port=port)
+    try:
+        wait_ready(served)
+    except BaseException:
+        served.stop()
+        raise
+    return served
 
 
-def serve_demo(port: int) -> subprocess.Popen[str]:
-    """The demo process served on ``port``, once it has said it is ready."""
-    proc = subprocess.Popen(
-        [sys.executable, "-c", SERVE_A, str(port)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=ROOT,
-        env={**os.environ, "EPICS_PVAS_BROADCAST_PORT": str(free_port())},
-    )
-    assert proc.stdout is not None
-    line = proc.stdout.readline()
-    if line.strip() != "ready":
-        proc.kill()
-        raise AssertionError(
-            f"the served demo did not start: {line}{proc.stdout.read()}"
-        )
-    return proc
-
-
-def stop(proc: subprocess.Popen[str]) -> None:
-    proc.kill()
-    proc.communicate(timeout=20)
+def stop(served: Served) -> None:
+    """Kill the served process (no clean stop: as if it died)."""
+    if served.proc.returncode is None:
+        served.proc.kill()
+        served.proc.communicate(timeout=20)
 
 
 @pytest.fixture(scope="module")

@@ -243,11 +243,11 @@ def test_a_server_that_stops_answering(tmp_path):
         try:
             det = b.get_block("DET1")
             assert det.health.value == "OK"
-            os.kill(a.pid, signal.SIGSTOP)
+            os.kill(a.proc.pid, signal.SIGSTOP)
             lost = f"pva://127.0.0.1:{port}/DET1: connection lost"
             await wait_for(lambda: det.health.value == lost, lost, LOST_WITHIN)
             assert det.state.alarm.severity is AlarmSeverity.INVALID_ALARM
-            os.kill(a.pid, signal.SIGCONT)
+            os.kill(a.proc.pid, signal.SIGCONT)
             await wait_for(lambda: det.health.value == "OK", "DET1 back", BACK_WITHIN)
             assert det.state.alarm.severity is AlarmSeverity.NO_ALARM
             await configure(b, 2, 0.01)
@@ -259,5 +259,6 @@ def test_a_server_that_stops_answering(tmp_path):
     try:
         asyncio.run(main())
     finally:
-        os.kill(a.pid, signal.SIGCONT)
+        if a.proc.poll() is None:
+            os.kill(a.proc.pid, signal.SIGCONT)
         stop(a)

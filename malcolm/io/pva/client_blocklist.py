@@ -2,10 +2,12 @@
 
 pymalcolm's servers publish the mris they serve as the ``blocks``
 attribute of a block called ``localhost``; ``malcolm ls`` reads it there.
-:func:`add_block_list` adds such a block to a process: its ``blocks`` is a
-string array of every other block's mri, in the process's order, brought
-up to date when the process starts and whenever :meth:`BlockList.refresh`
-is called (a server that adds blocks at run time calls it).
+:func:`add_block_list` adds such a block to a process (``malcolm serve`` and
+``malcolm demo`` do when they serve pvAccess): ``health`` (OK), ``state``
+(always Ready) and ``blocks``, a string array of every other block's mri in
+the process's order, brought up to date when the process starts and
+whenever :meth:`BlockList.refresh` is called (after blocks are added or
+removed at run time).
 
 This is a small piece kept apart from the pvAccess server: the server
 serves it like any block; a process without it makes ``malcolm ls`` say
@@ -16,7 +18,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from malcolm.core import Attribute, Block, StringArrayMeta, StringMeta
+from malcolm.core import Attribute, Block, ChoiceMeta, StringArrayMeta, StringMeta
 
 if TYPE_CHECKING:
     from malcolm.core import Process
@@ -36,6 +38,8 @@ class BlockList:
         self.block = Block(mri, "The blocks this process serves")
         self.health = Attribute("health", StringMeta("Why the block is in Fault"), "OK")
         self.block.add(self.health)
+        self.state = Attribute("state", ChoiceMeta(["Ready"], "Always Ready"))
+        self.block.add(self.state)
         self.blocks = Attribute(
             "blocks",
             StringArrayMeta("The mris of the blocks served", ("widget:table",)),
