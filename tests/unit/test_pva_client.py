@@ -145,7 +145,9 @@ def test_a_server_that_is_not_there_leaves_the_block_waiting():
         )
         await process.start()
         block = process.get_block("NOBODY")
-        assert list(block) == ["health"]
+        assert list(block) == ["health", "state"]
+        assert block.state.value == "Disabled"
+        assert block.state.alarm.severity is AlarmSeverity.INVALID_ALARM
         assert block.health.value == (
             f"pva://127.0.0.1:{port}/NOBODY: not connected within 0.2 s; still trying"
         )

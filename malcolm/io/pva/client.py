@@ -39,6 +39,7 @@ from malcolm.core import (
     Alarm,
     Attribute,
     Block,
+    ChoiceMeta,
     Method,
     NotWriteableError,
     StringMeta,
@@ -95,6 +96,16 @@ class RemoteBlock:
             alarm=Alarm.disconnected(f"{self.where}: not connected yet"),
         )
         self.block.add(placeholder)
+        # until the server is found: a state, as every block has (serve's
+        # state log and listing read it), not usable
+        self.block.add(
+            Attribute(
+                "state",
+                ChoiceMeta(["Disabled"], "State of the block"),
+                "Disabled",
+                alarm=Alarm.disconnected(f"{self.where}: not connected yet"),
+            )
+        )
 
     @property
     def where(self) -> str:
@@ -284,4 +295,4 @@ class RemoteBlock:
                 attr.set_alarm(alarm)
         for method in self.block.methods.values():
             method.set_writeable(False)
-        log.warning("%s", message)
+        log.debug("%s", message)  # serve logs the change of health
