@@ -31,6 +31,9 @@ def serve_demo(port: int) -> Served:
 
 def stop(served: Served) -> None:
     """Kill the served process (no clean stop: as if it died)."""
+    for context in served.contexts:
+        context.close()
+    served.contexts.clear()
     if served.proc.returncode is None:
         served.proc.kill()
         served.proc.communicate(timeout=20)

@@ -41,21 +41,9 @@ from malcolm.core.metas import (
     TableMeta,
 )
 
-__all__ = ["RemoteError", "args_value", "remote_error", "value_type"]
+from .convert import DTYPE_CODES
 
-#: numpy dtype names -> pvData type codes
-DTYPE_CODES = {
-    "int8": "b",
-    "uint8": "B",
-    "int16": "h",
-    "uint16": "H",
-    "int32": "i",
-    "uint32": "I",
-    "int64": "l",
-    "uint64": "L",
-    "float32": "f",
-    "float64": "d",
-}
+__all__ = ["RemoteError", "args_value", "remote_error", "value_type"]
 
 
 class RemoteError(MalcolmError):
