@@ -240,3 +240,43 @@ def test_the_block_list_names_the_other_blocks():
         await process.stop()
 
     asyncio.run(main())
+
+
+def test_a_served_block_that_changes_shape_goes_and_comes_back():
+    """Against malcolm's own server in this process: a field added at run
+    time appears in the mirror; a block removed shows as lost; made again,
+    it is back."""
+    from malcolm.core import Attribute
+    from malcolm.io.pva.server import start_pva_server
+
+    async def main():
+        port = free_port()
+        a = Process("a")
+        a.add_controller(StatefulController("C", [CounterPart("counter")]))
+        await a.start()
+        server = await start_pva_server(a, port)
+        b = Process("b")
+        b.add_controller(RemoteBlock("C", f"127.0.0.1:{port}"))
+        await b.start()
+        try:
+            mirror = b.get_block("C")
+            assert "extra" not in mirror
+            a.get_block("C").add(Attribute("extra", NumberMeta("int32"), 5))
+            await wait_for(lambda: "extra" in mirror, "extra")
+            assert mirror.extra.value == 5
+            a.get_block("C").counter.set_value(9.0)
+            await wait_for(lambda: mirror.counter.value == 9.0, "counter 9")
+            await a.get_controller("C").stop()
+            a.remove_controller("C")
+            await wait_for(lambda: mirror.health.value != "OK", "C gone")
+            assert mirror.counter.alarm.severity is AlarmSeverity.INVALID_ALARM
+            a.add_controller(StatefulController("C", [CounterPart("counter")]))
+            await a.get_controller("C").start()
+            await wait_for(lambda: mirror.health.value == "OK", "C back")
+            assert "extra" not in mirror and mirror.counter.value == 0.0
+        finally:
+            await b.stop()
+            await server.close()
+            await a.stop()
+
+    asyncio.run(main())

@@ -48,7 +48,7 @@ from malcolm.core import (
 from malcolm.core.metas import plain
 
 from ..backends import backend_for
-from ..channel import ChannelTimeoutError, ConnectionState
+from ..channel import ChannelTimeoutError, ConnectionState, DisconnectedError
 from .client_channel import PvaBackend, PvaChannel, StructureReading
 from .client_convert import args_value
 from .convert import to_dict as to_plain
@@ -85,6 +85,7 @@ class RemoteBlock:
         self.connect_timeout = connect_timeout
         self.block = Block(mri, f"Client of {mri} at pva://{address}")
         self.process: Process | None = None
+        #: as a Controller's (nobody is told of state changes here)
         self.state_listeners: list[Any] = []
         self._backend: PvaBackend | None = None
         self._channel: PvaChannel | None = None
@@ -155,12 +156,8 @@ class RemoteBlock:
     def _check_connected(self) -> PvaBackend:
         channel = self._channel
         if channel is None or self._backend is None:
-            from ..channel import DisconnectedError
-
             raise DisconnectedError(f"{self.where}: not started")
         if channel.state is not ConnectionState.CONNECTED:
-            from ..channel import DisconnectedError
-
             raise DisconnectedError(
                 f"{self.where}: {channel.message or 'not connected'}"
             )
