@@ -16,7 +16,7 @@ from .test_client_two_process import wait_for
 
 
 def test_a_field_of_a_served_block_as_a_channel():
-    from malcolm.io.pva.client_channel import PvaBackend
+    from malcolm.io.pva.client_backend import PvaBackend
 
     port = free_port()
     a = serve_demo(port)

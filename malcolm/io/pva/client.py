@@ -49,7 +49,8 @@ from malcolm.core.metas import plain
 
 from ..backends import backend_for
 from ..channel import ChannelTimeoutError, ConnectionState, DisconnectedError
-from .client_channel import PvaBackend, PvaChannel, StructureReading
+from .client_backend import PvaBackend
+from .client_channel import PvaChannel, StructureReading
 from .client_convert import args_value
 from .convert import to_dict as to_plain
 

@@ -103,7 +103,8 @@ def _run(name: str, command: Any, args: argparse.Namespace) -> int:
     try:
         from malcolm.core import MalcolmError
 
-        from .client_channel import PvaBackend, parse_address
+        from .client_backend import PvaBackend
+        from .client_channel import parse_address
 
         parse_address(args.address)
     except ValueError as e:
