@@ -264,6 +264,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_sim_zebra2(commands)
 
+    from malcolm.io.pva.client_cli import add_parsers as add_pva_client
+
+    add_pva_client(commands)  # get, put, call, ls (docs/pva-client.md)
+
     return parser
 
 

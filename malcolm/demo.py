@@ -156,8 +156,10 @@ async def serve_demo(
             process = demo_process()
             if pva_port:
                 from malcolm.io.pva import start_pva_server
+                from malcolm.io.pva.client_blocklist import add_block_list
 
                 pva = await start_pva_server(process, pva_port)
+                add_block_list(process)  # for malcolm ls (docs/pva-client.md)
             await process.start()
         try:
             if pva is not None:

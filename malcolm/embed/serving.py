@@ -85,8 +85,10 @@ async def serve(
     try:
         if pva_port:
             from malcolm.io.pva import start_pva_server
+            from malcolm.io.pva.client_blocklist import add_block_list
 
             pva = await start_pva_server(process, pva_port)
+            add_block_list(process)  # for malcolm ls (docs/pva-client.md)
             (logger or logging.getLogger("malcolm.serve")).info(
                 "pvAccess: serving on %s", pva.address
             )
