@@ -1,0 +1,76 @@
+"""PCAP samples into an HDF5 file (h5py), one dataset per captured column.
+
+:class:`CaptureFile` is made from the data port header (``StartData``): a
+1-D dataset per column named ``<FIELD>.<CAPTURE>`` (``COUNTER2.OUT.Min``),
+chunked and growing, with attributes ``capture``, ``units``, ``scale``,
+``offset`` (as the header gives them) and ``type`` (the box's type). Its
+methods are plain blocking calls: run them in a worker thread
+(``asyncio.to_thread``), never on the loop.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+from pandablocks.responses import StartData
+
+__all__ = ["CaptureFile"]
+
+#: rows per HDF5 chunk
+CHUNK_ROWS = 16384
+
+
+class CaptureFile:
+    """An open HDF5 file taking one experiment's frames."""
+
+    def __init__(self, path: str | Path, start: StartData) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.file = h5py.File(self.path, "w", libver="latest")
+        self.rows = 0
+        self.names: list[str] = []
+        self.datasets: list[h5py.Dataset] = []
+        self.file.attrs["arm_time"] = str(start.arm_time or "")
+        self.file.attrs["start_time"] = str(start.start_time or "")
+        self.file.attrs["process"] = str(start.process)
+        self.file.attrs["missed"] = int(start.missed)
+        for f in start.fields:
+            name = f"{f.name}.{f.capture}"
+            ds = self.file.create_dataset(
+                name,
+                shape=(0,),
+                maxshape=(None,),
+                dtype=f.type,
+                chunks=(CHUNK_ROWS,),
+            )
+            ds.attrs["capture"] = f.capture
+            ds.attrs["type"] = str(f.type)
+            if f.units is not None:
+                ds.attrs["units"] = f.units
+            if f.scale is not None:
+                ds.attrs["scale"] = f.scale
+            if f.offset is not None:
+                ds.attrs["offset"] = f.offset
+            self.names.append(name)
+            self.datasets.append(ds)
+
+    def write(self, frames: np.ndarray) -> int:
+        """Append a structured array of samples; the rows written so far."""
+        n = len(frames)
+        if n:
+            end = self.rows + n
+            for name, ds in zip(frames.dtype.names or (), self.datasets):
+                ds.resize((end,))
+                ds[self.rows : end] = frames[name]
+            self.rows = end
+        return self.rows
+
+    def close(self, samples: int | None = None, reason: str = "") -> None:
+        """Close; ``samples``/``reason`` from the END line become attributes."""
+        if self.file.id.valid:
+            if samples is not None:
+                self.file.attrs["end_samples"] = int(samples)
+            self.file.attrs["end_reason"] = reason
+            self.file.close()
