@@ -140,7 +140,24 @@ class Zebra2BlockPart(Part):
         self._registrar = registrar
         for f in self.block.fields:
             self._add_field(registrar, f)
+        if self.instance == "PCAP":
+            self._add_pcap_methods(registrar)
         self.box.watch_state(self._on_state)
+
+    def _add_pcap_methods(self, registrar: PartRegistrar) -> None:
+        """``ARM()`` and ``DISARM()``: the box's ``*PCAP.ARM=`` and
+        ``*PCAP.DISARM=`` (the design document's ``PCAP.ARM``)."""
+
+        async def arm() -> None:
+            await self._send("*PCAP.ARM=", "*PCAP.ARM")
+
+        async def disarm() -> None:
+            await self._send("*PCAP.DISARM=", "*PCAP.DISARM")
+
+        for name, func in (("ARM", arm), ("DISARM", disarm)):
+            if name not in registrar.controller.block:
+                doc = f"Send *PCAP.{name}= to the box"
+                registrar.add_method(func, name, MethodMeta(description=doc))
 
     def _add(
         self, registrar: PartRegistrar, name: str, meta: Meta, f: FieldLayout, attr=None
