@@ -232,6 +232,10 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     serve.set_defaults(func=cmd_serve)
 
+    from malcolm.sim.zebra2.cli import add_parser as add_sim_zebra2
+
+    add_sim_zebra2(commands)
+
     return parser
 
 
