@@ -147,11 +147,15 @@ def test_introspection_of_tier_2_gives_every_block_and_field():
 def test_changes_lines_are_parsed():
     assert parse_change("PCOMP1.START=5").value == "5"
     change = parse_change("COUNTER1.OUT.UNITS=mm")
-    assert (change.block, change.field, change.attribute) == ("COUNTER1", "OUT", "UNITS")
+    assert (change.block, change.field, change.attribute) == (
+        "COUNTER1",
+        "OUT",
+        "UNITS",
+    )
     assert parse_change("SEQ.TABLE<").kind == "table"
     assert parse_change("SYSTEM.TEMP_ZYNQ (error)").kind == "error"
     assert parse_change("*METADATA.LABEL_X=1") is None
-    assert parse_change("PCOMP1.START=") .value == ""
+    assert parse_change("PCOMP1.START=").value == ""
 
 
 def test_table_words_round_trip_through_columns():

@@ -104,7 +104,12 @@ def test_every_recorded_block_and_field_is_a_child_attribute_with_its_meta(
             "pos_mux": ChoiceMeta,
             "table": TableMeta,
         }
-        dtypes = {"uint": "uint32", "int": "int32", "time": "float64", "pos_out": "int32"}
+        dtypes = {
+            "uint": "uint32",
+            "int": "int32",
+            "time": "float64",
+            "pos_out": "int32",
+        }
         for block, details in recorded.items():
             name = block if details["count"] == 1 else f"{block}1"
             b = child(process, name)
@@ -124,7 +129,9 @@ def test_every_recorded_block_and_field_is_a_child_attribute_with_its_meta(
                     continue
                 meta = b[f["name"]].meta
                 assert isinstance(meta, kinds[kind]), where
-                assert meta.writeable == (ftype in ("param", "time", "bit_mux", "pos_mux", "table")), where
+                assert meta.writeable == (
+                    ftype in ("param", "time", "bit_mux", "pos_mux", "table")
+                ), where
                 if kind in dtypes:
                     assert meta.dtype == dtypes[kind], where
                 labels = (f.get("enums") or {}).get("values")
@@ -133,10 +140,18 @@ def test_every_recorded_block_and_field_is_a_child_attribute_with_its_meta(
                 attrs = f["attributes"]
                 if "CAPTURE" in attrs:
                     capture = b[f"{f['name']}_CAPTURE"]
-                    assert list(capture.meta.choices) == attrs["CAPTURE"]["enums"]["values"]
+                    assert (
+                        list(capture.meta.choices)
+                        == attrs["CAPTURE"]["enums"]["values"]
+                    )
                 if kind == "time":
                     units = b[f"{f['name']}_UNITS"]
-                    assert units.value == "s" and list(units.meta.choices) == ["min", "s", "ms", "us"]
+                    assert units.value == "s" and list(units.meta.choices) == [
+                        "min",
+                        "s",
+                        "ms",
+                        "us",
+                    ]
                 if ftype == "pos_out":
                     assert b[f"{f['name']}_SCALE"].value == 1.0
                     assert b[f"{f['name']}_OFFSET"].value == 0.0
@@ -192,13 +207,20 @@ def test_a_put_is_one_write_to_the_box(sim, tmp_path):
         assert await raw.ask("CLOCK1.PERIOD.RAW?") == ["OK =12500000"]
         rows = [{"REPEATS": 2, "TRIGGER": "BITA=1", "POSITION": -3, "TIME2": 9}]
         await process.put([f"{MRI}:SEQ", "TABLE"], rows)
-        assert await raw.ask("SEQ.TABLE?") == [str(2 | 2 << 16), str(2**32 - 3), "0", "9"]
+        assert await raw.ask("SEQ.TABLE?") == [
+            str(2 | 2 << 16),
+            str(2**32 - 3),
+            "0",
+            "9",
+        ]
         table = child(process, "SEQ").TABLE.value
         assert table["TRIGGER"] == ("BITA=1",) and table["POSITION"] == (-3,)
         # the mux wiring as data
         await until(
-            lambda: {"sink": "PCOMP1.INP", "source": "COUNTER1.OUT", "kind": "pos"}
-            in process.get_controller(MRI).parts["zebra2"].wiring_rows(),
+            lambda: (
+                {"sink": "PCOMP1.INP", "source": "COUNTER1.OUT", "kind": "pos"}
+                in process.get_controller(MRI).parts["zebra2"].wiring_rows()
+            ),
             what="PCOMP1.INP in the wiring",
         )
         # a write-only field is a method
@@ -232,22 +254,30 @@ def test_a_bad_put_returns_the_boxs_error_and_changes_nothing(
     run(sim, tmp_path, body)
 
 
-def test_the_example_design_drives_the_box_and_a_followed_field_faults(
-    sim, tmp_path
-):
+def test_the_example_design_drives_the_box_and_a_followed_field_faults(sim, tmp_path):
     async def body(process, raw):
         await process.put([MRI, "design"], "tier2")
         manager = process.get_block(MRI)
         assert manager.state.value == "Ready", manager.health.value
         assert await raw.ask("PCOMP2.WIDTH?") == ["OK =32"]
         assert await raw.ask("SEQ.TABLE?") == [
-            "3", "0", "32", "45", str(1 | 2 << 16), "0", "3", "5"
+            "3",
+            "0",
+            "32",
+            "45",
+            str(1 | 2 << 16),
+            "0",
+            "3",
+            "5",
         ]
         await process.put([MRI, "Start"], 77)
         assert await raw.ask("PCOMP1.START?") == ["OK =77"]
         await until(lambda: child(process, "PCOMP2").START.value == 77, what="follow")
         assert await raw.ask("PCOMP2.START?") == ["OK =77"]
+        await process.put([f"{MRI}:COUNTER1", "OUT_CAPTURE"], "Value")
+        assert await raw.ask("*CAPTURE?") == ["COUNTER1.OUT Value"]
         await process.post([MRI, "Arm"])  # the exported PCAP.ARM (*PCAP.ARM=)
+        assert (await raw.ask("*PCAP.COMPLETION?")) == ["OK =Busy"]
         await process.post([f"{MRI}:PCAP", "DISARM"])
         assert manager.state.value == "Ready", manager.health.value
         # another client writes the followed field
@@ -262,9 +292,7 @@ def test_the_example_design_drives_the_box_and_a_followed_field_faults(
     run(sim, tmp_path, body)
 
 
-def test_killing_the_box_gives_invalid_alarms_and_restarting_it_recovers(
-    sim, tmp_path
-):
+def test_killing_the_box_gives_invalid_alarms_and_restarting_it_recovers(sim, tmp_path):
     async def body(process, raw):
         manager = process.get_block(MRI)
         pcomp = child(process, "PCOMP1")
