@@ -154,12 +154,22 @@ class ControlClient:
         return futures
 
     async def _wait(self, command: str, fut: asyncio.Future[Reply]) -> Reply:
-        try:
-            return await asyncio.wait_for(asyncio.shield(fut), self.timeout)
-        except TimeoutError:
-            why = f"no reply to {command.splitlines()[0]!r} in {self.timeout} s"
-            self._drop(why)
-            raise Zebra2Timeout(f"{self.address}: {why}") from None
+        if not fut.done():
+            # one timer a reply (cheaper than wait_for, which makes a task)
+            loop = asyncio.get_running_loop()
+            timer = loop.call_later(self.timeout, self._timed_out, command, fut)
+            try:
+                await fut
+            finally:
+                timer.cancel()
+        return fut.result()
+
+    def _timed_out(self, command: str, fut: asyncio.Future[Reply]) -> None:
+        if fut.done():
+            return
+        why = f"no reply to {command.splitlines()[0]!r} in {self.timeout} s"
+        fut.set_exception(Zebra2Timeout(f"{self.address}: {why}"))
+        self._drop(why)
 
     async def send(self, command: str) -> Reply:
         """Send one command and return its reply (Zebra2Error on ``ERR``)."""

@@ -17,7 +17,7 @@ from .layout import TableColumn
 __all__ = ["Change", "pack_table", "parse_change", "unpack_table"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Change:
     """One ``*CHANGES`` line: ``block`` is the instance (``PCOMP1``, ``SEQ``),
     ``attribute`` is None for the field's value; ``kind`` is ``value``,

@@ -32,7 +32,7 @@ from malcolm.io.zebra2 import Zebra2Error
 from .conftest import ROOT, RawClient, SimBox
 
 TIER2 = ROOT / "malcolm" / "sim" / "zebra2" / "data" / "introspection-tier2.json"
-DESIGN = ROOT / "designs" / "BL18I_Z1" / "tier2.yaml"
+DESIGN = ROOT / "designs" / "zebra2-tier2" / "BL18I_Z1" / "example.yaml"
 MRI = "BL18I:Z1"
 POLL = 0.05
 
@@ -40,7 +40,7 @@ POLL = 0.05
 def manager_process(sim: SimBox, tmp_path: Path, poll: float = POLL) -> Process:
     designs = tmp_path / "designs" / "BL18I_Z1"
     designs.mkdir(parents=True, exist_ok=True)
-    shutil.copy(DESIGN, designs / "tier2.yaml")
+    shutil.copy(DESIGN, designs / "example.yaml")
     process = Process("z2", designs_dir=str(tmp_path / "designs"))
     params = {
         "host": sim.host,
@@ -256,7 +256,7 @@ def test_a_bad_put_returns_the_boxs_error_and_changes_nothing(
 
 def test_the_example_design_drives_the_box_and_a_followed_field_faults(sim, tmp_path):
     async def body(process, raw):
-        await process.put([MRI, "design"], "tier2")
+        await process.put([MRI, "design"], "example")
         manager = process.get_block(MRI)
         assert manager.state.value == "Ready", manager.health.value
         assert await raw.ask("PCOMP2.WIDTH?") == ["OK =32"]
