@@ -40,7 +40,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     generator = demo_generator(duration=args.duration) if args.scan else None
     try:
-        return asyncio.run(serve_demo(args.scan, generator=generator, freeze=True))
+        zebra2 = getattr(args, "zebra2", False)
+        return asyncio.run(
+            serve_demo(args.scan, generator=generator, freeze=True, zebra2=zebra2)
+        )
     except Exception as e:  # no traceback reaches a user
         print(f"malcolm demo: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -169,6 +172,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.05,
         metavar="SECONDS",
         help="seconds per point of the --scan (default 0.05)",
+    )
+    demo.add_argument(
+        "--zebra2",
+        action="store_true",
+        help="add a simulated Zebra2 box, its manager ZEBRA2 and ZEBRA2:CAPTURE",
     )
     demo.set_defaults(func=cmd_demo)
 

@@ -124,11 +124,14 @@ async def serve_demo(
     signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM),
     generator: dict[str, Any] | None = None,
     freeze: bool = False,
+    zebra2: bool = False,
 ) -> int:
     """Serve the demo process until one of ``signals``, or run its scan
     (``generator``, by default :func:`demo_generator`'s grid). ``freeze``
     builds and starts it under :func:`malcolm.core.long_lived` (the command
-    line does: its blocks live until the program ends).
+    line does: its blocks live until the program ends). ``zebra2`` adds a
+    simulated Zebra2 box with its manager (``ZEBRA2``) and capture block
+    (:mod:`malcolm.parts.zebra2_demo`).
 
     The exit status: 0 once the scan has Finished (``scan``), or when serving
     is stopped by a signal; ``128 + signal`` (130 for SIGINT, 143 for
@@ -149,13 +152,24 @@ async def serve_demo(
     for sig in signals:
         loop.add_signal_handler(sig, on_signal, sig)
     try:
+        box = None
         with long_lived() if freeze else contextlib.nullcontext():
             process = demo_process()
+            if zebra2:
+                from malcolm.parts.zebra2_demo import start_demo_zebra2
+
+                box = await start_demo_zebra2(process)
+                out.write(
+                    f"malcolm demo: simulated Zebra2 box: control {box.host}:"
+                    f"{box.control_port}, data {box.host}:{box.data_port}\n"
+                )
             await process.start()
         try:
             status = await _demo(process, scan, generator, stop, received, out, err)
         finally:
             await process.stop()
+            if box is not None:
+                await box.close()
     finally:
         for sig in signals:
             loop.remove_signal_handler(sig)
