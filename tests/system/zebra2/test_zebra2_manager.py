@@ -315,3 +315,29 @@ def test_killing_the_box_gives_invalid_alarms_and_restarting_it_recovers(sim, tm
         assert pcomp.START.value == 3
 
     run(sim, tmp_path, body)
+
+
+def test_a_box_not_there_at_start_faults_the_manager_and_a_reset_makes_it(
+    sim, tmp_path
+):
+    sim.kill()
+
+    async def main():
+        process = manager_process(sim, tmp_path)
+        await process.start()
+        manager = process.get_block(MRI)
+        try:
+            assert manager.state.value == "Fault"
+            assert f"{sim.host}:{sim.control_port}: cannot connect" in (
+                manager.health.value
+            )
+            assert process.get_controller(MRI).children == {}
+            sim.start()
+            await process.post([MRI, "reset"])
+            assert manager.state.value == "Ready", manager.health.value
+            assert len(process.get_controller(MRI).children) == 19
+            assert child(process, "PCOMP1").state.value == "Ready"
+        finally:
+            await process.stop()
+
+    asyncio.run(main())
