@@ -178,8 +178,13 @@ async def malcolm_capture(
         {"generator": generator, "captureFields": FIELDS, "captureFile": str(path)},
     )
     start = time.perf_counter()
-    await process.post(["CAP", "run"])
-    seconds = time.perf_counter() - start
+    try:
+        await asyncio.wait_for(process.post(["CAP", "run"]), 5 * window + 10)
+    finally:
+        seconds = time.perf_counter() - start
+        if process.get_block("CAP").state.value != "Finished":
+            await process.stop()
+            await raw.close()
     block = process.get_block("CAP")
     written, reason = block.captureEnd.value.split(" ", 1)
     await process.stop()
@@ -206,7 +211,12 @@ async def pandablocks_capture(
         await asyncio.sleep(0.3)  # its data connection is made
         start = time.perf_counter()
         assert await raw.ask("*PCAP.ARM=") == ["OK"]
+        deadline = time.perf_counter() + 5 * window + 10
         while int((await raw.ask("*PCAP.CAPTURED?"))[0][4:]) < samples:
+            if (await raw.ask("*PCAP.COMPLETION?")) != ["OK =Busy"]:
+                break  # ended by the box (an overrun)
+            if time.perf_counter() > deadline:
+                raise TimeoutError(f"pandablocks capture: not {samples} samples")
             await asyncio.sleep(0.001)
         await raw.ask("*PCAP.DISARM=")
         await writer
