@@ -12,8 +12,9 @@ A runnable block's part that captures what a Zebra2 box's PCAP sends:
   thread) until the box's ``END``: one dataset per captured column with
   its units, scale and offset. Progress is the samples written. Once the
   scan's steps are all captured the box is disarmed (the samples it sent
-  meanwhile are written too). The run fails if the samples written are not
-  the number the ``END`` line reports;
+  meanwhile are written too). The run fails if the ``END`` line's reason is
+  not ``Ok`` or ``Disarmed`` (a ``Data overrun``: samples were lost), or if
+  the samples written are not the number it reports;
 - **abort** disarms (``*PCAP.DISARM=``) and closes the data connection.
 
 ``samplesWritten`` shows the samples in the file; ``captureEnd`` the
@@ -149,6 +150,12 @@ class Zebra2CapturePart(Part):
                     self.end.set_value(f"{item.samples} {reason}")
                     if file is not None:
                         await asyncio.to_thread(file.close, item.samples, reason)
+                    if reason not in ("Ok", "Disarmed"):
+                        raise MalcolmError(
+                            f"{task.part}: the capture ended with END"
+                            f" {item.samples} {reason} ({written} samples written"
+                            f" to {self.file_name})"
+                        )
                     if item.samples != written:
                         raise MalcolmError(
                             f"{task.part}: the box reported {item.samples} samples,"
