@@ -27,7 +27,7 @@ from malcolm.sim.zebra2 import ManualClock
 from .test_zebra2_sim_transcripts import unescape
 from .test_zebra2_sim_wire import Wire, aio, running
 
-RECORDINGS = Path("/work/shared/zebra2")
+RECORDINGS = Path(__file__).with_name("zebra2_recordings")  # from /work/shared/zebra2
 _TIMES = re.compile(rb'(arm_time|start_time)(: |=")[0-9T:.\-]+Z')
 _HEX = re.compile(r"^    [0-9a-f]{4}  ((?:[0-9a-f]{2} )+)")
 
@@ -247,7 +247,7 @@ async def test_tier2_headers_exact_and_samples_consistent() -> None:
         assert np.allclose(r["mean"] / r["gate"] * 0.5 + 10, a[:, 6])
 
 
-@pytest.mark.parametrize("options", ["NOSUCH", " ASCII", "ASCII FOO"])
+@pytest.mark.parametrize("options", ["NOSUCH", "ASCII FOO", "ASCII\r"])
 @aio
 async def test_invalid_option_line_is_refused(options: str) -> None:
     async with running() as server:

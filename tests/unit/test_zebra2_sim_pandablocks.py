@@ -161,3 +161,16 @@ async def test_pandablocks_captures_a_fast_stream() -> None:
 
 async def _noop() -> None:
     return None
+
+
+@aio
+async def test_the_simulator_benchmark_prints_its_table(capsys) -> None:
+    from benchmarks import zebra2_sim
+
+    rows = await zebra2_sim.main(0.2, [0.5])
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split()[:2] == ["case", "measured"]
+    assert len(rows) == 5 and rows[-1].case.startswith("largest rate")
+    for row in rows[:4]:  # every sample made was delivered
+        made, delivered = row.note.split(", END ")
+        assert made == "made " + delivered.split()[0] and row.note.endswith(" Ok")

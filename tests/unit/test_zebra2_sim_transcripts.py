@@ -29,7 +29,7 @@ from malcolm.sim.zebra2 import ManualClock
 
 from .test_zebra2_sim_wire import Wire, aio, running
 
-RECORDINGS = Path("/work/shared/zebra2")
+RECORDINGS = Path(__file__).with_name("zebra2_recordings")  # from /work/shared/zebra2
 
 #: seconds of simulated time that pass before the n-th sending of a command
 ADVANCE = {

@@ -20,13 +20,15 @@ from datetime import UTC, datetime
 import numpy as np
 
 from .box import Box
+from .clocks import ClockModel
 from .columns import Column, build_columns, word_offsets
 from .dataport import DataClient
 from .fields import BitOutField, PosOutField
-from .signals import ClockModel, Signals
+from .signals import Signals
 from .values import CLOCK_HZ, Zebra2Error
 
 BATCH = 65536
+ASCII_BATCH = 4096
 OVERRUN_BYTES = 256 * 1024 * 1024
 OVERRUN_LAG = CLOCK_HZ  # one second of samples not yet made
 KEEP = 1 << 16  # samples kept for late joiners
@@ -156,11 +158,17 @@ class Capture:
             ticks = np.arange(k0 + 1, k1 + 1, dtype=np.int64) * SYNTHETIC_PERIOD
             return self.t_start + ticks
         trig = self.signals.source(self._mux("PCAP.TRIG"))
-        if not isinstance(trig, ClockModel) or not self.signals.bit_high(
-            self._mux("PCAP.GATE"), t
-        ):
+        if isinstance(trig, int):
             return np.zeros(0, dtype=np.int64)
-        return trig.rises_between(self.t_done, t, limit)
+        if isinstance(trig, ClockModel):
+            edge = self._mux("PCAP.TRIG_EDGE")
+            ticks = trig.edges_between(self.t_done, t, limit, edge)
+        else:
+            ticks = trig.rises_between(self.t_done, t, limit)
+        gate = self.signals.source(self._mux("PCAP.GATE"))
+        if isinstance(gate, int):
+            return ticks if gate else ticks[:0]
+        return ticks[gate.out_at_array(ticks) > 0]
 
     def _mux(self, key: str) -> str:
         value = self.box.field(key).read()
@@ -172,10 +180,16 @@ class Capture:
         if not self.started or limit == 0:
             return 0
         made = 0
+        end = self.end_tick()
+        stop = t if end is None else min(t, end)
+        if limit is not None and any(c.format == "ASCII" for c in self.clients):
+            limit = min(limit, ASCII_BATCH)  # printing is slow: keep the loop free
         while True:
-            ticks = self.trigger_ticks(t, limit or BATCH)
+            ticks = self.trigger_ticks(stop, limit or BATCH)
             if len(ticks) == 0:
-                self.t_done = max(self.t_done, t)
+                self.t_done = max(self.t_done, stop)
+                if end is not None and end <= t:
+                    self._finish("Ok")  # PCAP.ENABLE fell (e.g. PCOMP.ACTIVE)
                 break
             self._emit(ticks)
             made += len(ticks)
@@ -193,6 +207,13 @@ class Capture:
         else:
             self.kept = []
         self._send(words)
+
+    def end_tick(self) -> int | None:
+        """When PCAP.ENABLE's source falls by itself, if it does."""
+        if self.synthetic:
+            return None
+        enable = self.signals.source(self._mux("PCAP.ENABLE"))
+        return None if isinstance(enable, int) else enable.end_tick()
 
     def lagging(self, t: int) -> bool:
         return self.started and t - self.t_done > OVERRUN_LAG
@@ -261,15 +282,14 @@ class Capture:
         out = np.zeros(len(ticks), dtype=np.int64)
         names = self.box.field(word).fdef.attrs["BITS"].initial.get("values", [])
         for offset, name in enumerate(names):
-            if not name:
+            if not name or name == "PCAP.ACTIVE":
+                out |= int(name == "PCAP.ACTIVE") << offset  # high while capturing
                 continue
-            clock = name.endswith(".OUT") and self.signals.clocks.get(name[:-4])
-            if clock:
-                out |= clock.out_at_array(ticks) << offset
+            source = self.signals.source(name)
+            if isinstance(source, int):
+                out |= source << offset
             else:
-                state = self.box.by_key.get(name)
-                if state and isinstance(state[0], BitOutField) and state[0].value:
-                    out |= 1 << offset
+                out |= source.out_at_array(ticks) << offset
         return out
 
     def _position(self, col: Column, ticks: np.ndarray, duration: np.ndarray):

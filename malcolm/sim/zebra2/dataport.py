@@ -66,10 +66,8 @@ class DataClient:
     @classmethod
     def from_options(cls, line: str, writer: asyncio.StreamWriter) -> DataClient | None:
         """The client for an option line, or None if an option is invalid."""
-        options = set(line.split())
-        if line.strip() and not options <= _OPTIONS:
-            return None
-        if line != line.strip() and line.strip():
+        options = {option for option in line.split(" ") if option}
+        if not options <= _OPTIONS:
             return None
         return cls(options, writer)
 
