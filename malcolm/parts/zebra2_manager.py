@@ -153,9 +153,15 @@ class Zebra2ManagerPart(Part):
             await child.start()
             controller.add_part(ChildPart(instance, mri))
             self.children[instance] = mri
-        layout_of = getattr(controller, "_default_layout", None)
-        if layout_of is not None:  # a ManagerController: its palette
-            controller.layout.set_value(layout_of())  # type: ignore[attr-defined]
+        layout = getattr(controller, "layout", None)
+        if layout is not None:  # a ManagerController: its palette gets them
+            rows = list(layout.meta.rows(layout.value))
+            known = {row["name"] for row in rows}
+            for instance, mri in self.children.items():
+                if instance not in known:
+                    row = {"name": instance, "mri": mri, "x": 0.0, "y": 0.0}
+                    rows.append({**row, "visible": True})
+            layout.set_value(layout.meta.validate(rows))
 
     # ---- the box's news
     def _on_state(self, connected: bool, message: str) -> None:

@@ -91,6 +91,9 @@ def test_every_recorded_block_and_field_is_a_child_attribute_with_its_meta(
             n = details["count"]
             expected += [block] if n == 1 else [f"{block}{i}" for i in range(1, n + 1)]
         assert sorted(process.get_controller(MRI).children) == sorted(expected)
+        # the palette has them all (the Editor's layout)
+        assert sorted(manager.layout.value["name"]) == sorted(expected)
+        assert manager.layout.value["mri"][0] == f"{MRI}:{expected[0]}"
         kinds = {
             "uint": NumberMeta,
             "int": NumberMeta,
@@ -341,3 +344,24 @@ def test_a_box_not_there_at_start_faults_the_manager_and_a_reset_makes_it(
             await process.stop()
 
     asyncio.run(main())
+
+
+def test_a_field_the_box_cannot_read_has_an_invalid_alarm(tmp_path):
+    box = SimBox("tier1")  # its SYSTEM block's reads fail: "(error)"
+    box.start()
+    try:
+
+        async def body(process, raw):
+            manager = process.get_block(MRI)
+            assert manager.state.value == "Ready", manager.health.value
+            system = child(process, "SYSTEM")
+            for name in ("TEMP_ZYNQ", "TEMP_PSU", "VCCINT"):
+                alarm = system[name].alarm
+                assert alarm.severity is AlarmSeverity.INVALID_ALARM, name
+                assert f"SYSTEM.{name}: the box cannot read it" == alarm.message
+            assert child(process, "PCOMP1").START.alarm.severity == 0
+            assert len(process.get_controller(MRI).children) > 29
+
+        run(box, tmp_path, body)
+    finally:
+        box.kill()
