@@ -7,10 +7,10 @@ A :class:`Box` owns a :class:`~.control.ControlClient`, the box's
 - :meth:`Box.run` polls ``*CHANGES?`` every ``poll_period`` seconds and
   hands each change to the callbacks watching its ``(block, field,
   attribute)``; a table change (``!SEQ.TABLE<``) is re-read (``SEQ.TABLE?``)
-  and handed on as its words. When the connection is lost the state
-  watchers hear at once; the loop tries again every ``poll_period`` (at
-  least every :data:`RETRY_PERIOD`), and after a reconnection the first
-  ``*CHANGES?`` reports every value again;
+  and handed on as its words. When the connection is lost (the next poll
+  fails at once, or a reply times out) the state watchers hear it; the loop
+  tries again every ``poll_period`` (at most :data:`RETRY_PERIOD` apart),
+  and after a reconnection the first ``*CHANGES?`` reports every value;
 - :meth:`Box.write`, :meth:`Box.write_table`, :meth:`Box.call` are one
   write each, pipelined with a read-back of the same target, on the same
   connection as the polls (so they are ordered with them).

@@ -2,7 +2,7 @@
 
 :func:`introspect` asks a box's control port (``*BLOCKS?``, ``*DESC``,
 ``B.*?``, ``B.F.*?``, ``*ENUMS``, the attributes that fix a field's meta,
-``B1.TABLE.FIELDS?``) in four pipelined rounds and returns a
+``B1.TABLE.FIELDS?``, the table columns' labels) in five pipelined rounds and returns a
 :class:`BoxLayout`. Field values are not read here: the first ``*CHANGES?``
 of a connection reports every value.
 """
