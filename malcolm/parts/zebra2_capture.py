@@ -23,7 +23,6 @@ A runnable block's part that captures what a Zebra2 box's PCAP sends:
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 from typing import TYPE_CHECKING, Any
 
@@ -122,8 +121,7 @@ class Zebra2CapturePart(Part):
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
-        from malcolm.io.zebra2.data import EndData, FrameData, StartData
-        from malcolm.io.zebra2.hdf import CaptureFile  # h5py: when used
+        from malcolm.io.zebra2.hdf import capture_to_file  # h5py: when used
 
         data = self.data
         assert data is not None, "configure first"
@@ -131,39 +129,31 @@ class Zebra2CapturePart(Part):
         await control.send("*PCAP.ARM=")
         wanted = int(device.configuredSteps) - int(device.completedSteps)
         start = int(device.completedSteps)
-        file: Any = None
         disarmed = False
-        written = 0
-        try:
-            async for item in data.experiment():
-                if isinstance(item, StartData):
-                    file = await asyncio.to_thread(CaptureFile, self.file_name, item)
-                elif isinstance(item, FrameData) and file is not None:
-                    written = await asyncio.to_thread(file.write, item.data)
-                    self.samples.set_value(written)
-                    task.report_progress(start + min(written, wanted))
-                    if written >= wanted > 0 and not disarmed:
-                        disarmed = True
-                        await control.send("*PCAP.DISARM=")
-                elif isinstance(item, EndData):
-                    reason = item.reason.value
-                    self.end.set_value(f"{item.samples} {reason}")
-                    if file is not None:
-                        await asyncio.to_thread(file.close, item.samples, reason)
-                    if reason not in ("Ok", "Disarmed"):
-                        raise MalcolmError(
-                            f"{task.part}: the capture ended with END"
-                            f" {item.samples} {reason} ({written} samples written"
-                            f" to {self.file_name})"
-                        )
-                    if item.samples != written:
-                        raise MalcolmError(
-                            f"{task.part}: the box reported {item.samples} samples,"
-                            f" {written} were written to {self.file_name}"
-                        )
-        finally:
-            if file is not None:
-                await asyncio.to_thread(file.close)
+
+        async def on_rows(rows: int) -> None:
+            nonlocal disarmed
+            self.samples.set_value(rows)
+            task.report_progress(start + min(rows, wanted))
+            if rows >= wanted > 0 and not disarmed:
+                disarmed = True
+                await control.send("*PCAP.DISARM=")
+
+        written, end = await capture_to_file(data, self.file_name, on_rows)
+        if end is None:
+            raise MalcolmError(f"{task.part}: the capture ended with no END")
+        reason = end.reason.value
+        self.end.set_value(f"{end.samples} {reason}")
+        if reason not in ("Ok", "Disarmed"):
+            raise MalcolmError(
+                f"{task.part}: the capture ended with END {end.samples} {reason}"
+                f" ({written} samples written to {self.file_name})"
+            )
+        if end.samples != written:
+            raise MalcolmError(
+                f"{task.part}: the box reported {end.samples} samples,"
+                f" {written} were written to {self.file_name}"
+            )
         task.report_progress(start + wanted)
 
     @RunnableDevice.Abort

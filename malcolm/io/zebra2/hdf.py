@@ -1,6 +1,9 @@
 """PCAP samples into an HDF5 file (h5py), one dataset per captured column.
 
-:class:`CaptureFile` is made from the data port header (``StartData``): a
+:func:`capture_to_file` streams one experiment from a
+:class:`~malcolm.io.zebra2.data.DataClient` into a file and returns the
+rows written and the ``END``. :class:`CaptureFile` is made from the data
+port header (``StartData``): a
 1-D dataset per column named ``<FIELD>.<CAPTURE>`` (``COUNTER2.OUT.Min``),
 chunked and growing, with attributes ``capture``, ``units``, ``scale``,
 ``offset`` (as the header gives them) and ``type`` (the box's type). Its
@@ -10,13 +13,16 @@ methods are plain blocking calls: run them in a worker thread
 
 from __future__ import annotations
 
+import asyncio
+from collections.abc import Awaitable, Callable
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
-from pandablocks.responses import StartData
+from pandablocks.responses import EndData, FrameData, StartData
 
-__all__ = ["CaptureFile"]
+__all__ = ["CaptureFile", "capture_to_file"]
 
 #: rows per HDF5 chunk
 CHUNK_ROWS = 16384
@@ -74,3 +80,35 @@ class CaptureFile:
                 self.file.attrs["end_samples"] = int(samples)
             self.file.attrs["end_reason"] = reason
             self.file.close()
+
+
+async def capture_to_file(
+    data: Any,
+    path: str | Path,
+    on_rows: Callable[[int], Awaitable[None] | None] | None = None,
+) -> tuple[int, EndData | None]:
+    """Write the next experiment of ``data`` (a connected DataClient) into
+    ``path``: (rows written, its EndData). The file is made at the header,
+    each chunk of frames is written in a worker thread (never on the loop),
+    and ``on_rows(rows)`` is called after each (it may be async)."""
+    file: CaptureFile | None = None
+    rows = 0
+    end: EndData | None = None
+    try:
+        async for item in data.experiment():
+            if isinstance(item, StartData):
+                file = await asyncio.to_thread(CaptureFile, path, item)
+            elif isinstance(item, FrameData) and file is not None:
+                rows = await asyncio.to_thread(file.write, item.data)
+                if on_rows is not None:
+                    result = on_rows(rows)
+                    if result is not None:
+                        await result
+            elif isinstance(item, EndData):
+                end = item
+                if file is not None:
+                    await asyncio.to_thread(file.close, end.samples, end.reason.value)
+    finally:
+        if file is not None:
+            await asyncio.to_thread(file.close)
+    return rows, end
