@@ -23,6 +23,7 @@ def test_the_zebra2_benchmark_prints_its_table() -> None:
         "introspect tier 2 -> 19 ready children",
         "*CHANGES? poll through the manager / bare socket",
         "capture to HDF5: malcolm / pandablocks write_hdf_files",
+        "  on one recorded stream, replayed at full speed",
         "largest rate sustained 0.5 s, none lost",
     ]
     assert [line[: len(c)] for line, c in zip(lines[2:], cases)] == cases
