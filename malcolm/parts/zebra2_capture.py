@@ -10,7 +10,8 @@ A runnable block's part that captures what a Zebra2 box's PCAP sends:
 - **run** arms (``*PCAP.ARM=``) and streams the experiment into the file
   (:class:`~malcolm.io.zebra2.hdf.CaptureFile`, written in a worker
   thread) until the box's ``END``: one dataset per captured column with
-  its units, scale and offset. Progress is the samples written. Once the
+  its units, scale and offset (a later run of the same scan, after a
+  breakpoint, appends to the file). Progress is the samples written. Once the
   scan's steps are all captured the box is disarmed (the samples it sent
   meanwhile are written too). The run fails if the ``END`` line's reason is
   not ``Ok`` or ``Disarmed`` (a ``Data overrun``: samples were lost), or if
@@ -131,15 +132,20 @@ class Zebra2CapturePart(Part):
         start = int(device.completedSteps)
         disarmed = False
 
+        before = int(self.samples.value) if start > 0 else 0
+
         async def on_rows(rows: int) -> None:
             nonlocal disarmed
-            self.samples.set_value(rows)
+            self.samples.set_value(before + rows)
             task.report_progress(start + min(rows, wanted))
             if rows >= wanted > 0 and not disarmed:
                 disarmed = True
                 await control.send("*PCAP.DISARM=")
 
-        written, end = await capture_to_file(data, self.file_name, on_rows)
+        # a later run of the scan goes on with the file of the first
+        written, end = await capture_to_file(
+            data, self.file_name, on_rows, append=start > 0
+        )
         if end is None:
             raise MalcolmError(f"{task.part}: the capture ended with no END")
         reason = end.reason.value

@@ -85,10 +85,12 @@ class DataClient:
         pending = list(self._early)
         self._early = []
         while True:
-            for data in pending:
-                yield data  # type: ignore[misc]
+            for i, data in enumerate(pending):
                 if isinstance(data, EndData):
+                    self._early = pending[i + 1 :]  # the next experiment's
+                    yield data
                     return
+                yield data  # type: ignore[misc]
             chunk = await self._reader.read(CHUNK)
             if not chunk:
                 raise Zebra2Disconnected(

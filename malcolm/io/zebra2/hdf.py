@@ -31,13 +31,16 @@ CHUNK_ROWS = 16384
 class CaptureFile:
     """An open HDF5 file taking one experiment's frames."""
 
-    def __init__(self, path: str | Path, start: StartData) -> None:
+    def __init__(self, path: str | Path, start: StartData, append: bool = False):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.file = h5py.File(self.path, "w", libver="latest")
         self.rows = 0
         self.names: list[str] = []
         self.datasets: list[h5py.Dataset] = []
+        if append and self.path.exists():
+            self._append(start)
+            return
+        self.file = h5py.File(self.path, "w", libver="latest")
         self.file.attrs["arm_time"] = str(start.arm_time or "")
         self.file.attrs["start_time"] = str(start.start_time or "")
         self.file.attrs["process"] = str(start.process)
@@ -62,6 +65,21 @@ class CaptureFile:
             self.names.append(name)
             self.datasets.append(ds)
 
+    def _append(self, start: StartData) -> None:
+        """Go on with the file of an earlier experiment of the same fields
+        (the next run of a scan)."""
+        self.file = h5py.File(self.path, "a")
+        names = [f"{f.name}.{f.capture}" for f in start.fields]
+        missing = [n for n in names if n not in self.file]
+        if missing:
+            self.file.close()
+            raise ValueError(
+                f"{self.path}: cannot append: it has no dataset {missing[0]}"
+            )
+        self.names = names
+        self.datasets = [self.file[n] for n in names]
+        self.rows = len(self.datasets[0]) if self.datasets else 0
+
     def write(self, frames: np.ndarray) -> int:
         """Append a structured array of samples; the rows written so far."""
         n = len(frames)
@@ -74,7 +92,8 @@ class CaptureFile:
         return self.rows
 
     def close(self, samples: int | None = None, reason: str = "") -> None:
-        """Close; ``samples``/``reason`` from the END line become attributes."""
+        """Close; ``samples``/``reason`` from the (last) END line become
+        attributes."""
         if self.file.id.valid:
             if samples is not None:
                 self.file.attrs["end_samples"] = int(samples)
@@ -86,20 +105,23 @@ async def capture_to_file(
     data: Any,
     path: str | Path,
     on_rows: Callable[[int], Awaitable[None] | None] | None = None,
+    append: bool = False,
 ) -> tuple[int, EndData | None]:
     """Write the next experiment of ``data`` (a connected DataClient) into
-    ``path``: (rows written, its EndData). The file is made at the header,
-    each chunk of frames is written in a worker thread (never on the loop),
-    and ``on_rows(rows)`` is called after each (it may be async)."""
+    ``path``: (rows of this experiment written, its EndData). The file is
+    made at the header (``append``: an existing file's datasets grow), each
+    chunk of frames is written in a worker thread (never on the loop), and
+    ``on_rows(rows)`` is called after each (it may be async)."""
     file: CaptureFile | None = None
-    rows = 0
+    rows = first = 0
     end: EndData | None = None
     try:
         async for item in data.experiment():
             if isinstance(item, StartData):
-                file = await asyncio.to_thread(CaptureFile, path, item)
+                file = await asyncio.to_thread(CaptureFile, path, item, append)
+                first = file.rows
             elif isinstance(item, FrameData) and file is not None:
-                rows = await asyncio.to_thread(file.write, item.data)
+                rows = await asyncio.to_thread(file.write, item.data) - first
                 if on_rows is not None:
                     result = on_rows(rows)
                     if result is not None:

@@ -144,3 +144,51 @@ def test_a_bad_capture_field_refuses_configure_naming_it(sim, tmp_path, fields):
     message, state = asyncio.run(main())
     assert fields[0].split()[0] in message
     assert state == "Fault"
+
+
+def test_a_scan_in_two_runs_appends_the_second_to_the_file(sim, tmp_path):
+    path = tmp_path / "two.h5"
+
+    async def main():
+        process = Process("cap")
+        params = {
+            "host": sim.host,
+            "control_port": sim.control_port,
+            "data_port": sim.data_port,
+        }
+        build_definition("zebra2.Capture", params, MRI, process=process)
+        await process.start()
+        raw = await RawClient.open(sim)
+        try:
+            for command in SETUP:
+                assert await raw.ask(command) == ["OK"], command
+            generator = gda.compound(gda.line("x", 10), duration=0.02)
+            await process.post(
+                [MRI, "configure"],
+                {
+                    "generator": generator,
+                    "breakpoints": [5, 5],
+                    "captureFields": FIELDS[:1],
+                    "captureFile": str(path),
+                },
+            )
+            block = process.get_block(MRI)
+            await process.post([MRI, "run"])
+            assert block.state.value == "Armed"
+            first = int(block.captureEnd.value.split()[0])
+            await process.post([MRI, "run"])
+            assert block.state.value == "Finished"
+            second = int(block.captureEnd.value.split()[0])
+            return first, second, block.samplesWritten.value
+        finally:
+            await raw.close()
+            await process.stop()
+
+    first, second, written = asyncio.run(main())
+    assert first >= 5 and second >= 5
+    assert written == first + second
+    with h5py.File(path, "r") as f:
+        counts = f["COUNTER1.OUT.Value"][()]
+    assert len(counts) == first + second
+    # both runs' samples, in order: the counter only goes up
+    assert all(b > a for a, b in zip(counts, counts[1:]))
