@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from malcolm.sim.beamline_ioc import cli as sim_ioc_cli
+
 
 def cmd_points(args: argparse.Namespace) -> int:
     """Print every point of the scan described in ``args.file`` as one JSON
@@ -232,6 +234,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     serve.set_defaults(func=cmd_serve)
 
+    sim_ioc_cli.add_parser(commands)
     return parser
 
 
