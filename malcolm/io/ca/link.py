@@ -27,6 +27,7 @@ import threading
 from collections.abc import Callable
 from typing import Any, Protocol
 
+import numpy as np
 from epics import ca, dbr
 
 __all__ = ["Link", "LinkListener", "link"]
@@ -65,6 +66,8 @@ def _unpack(args: Any) -> Payload | None:
     except IndexError:  # an empty waveform
         metadata = {}
     value = ca._unpack(args.chid, raw, count=args.count, ftype=args.type)
+    if isinstance(value, ctypes.Array):  # a one-element waveform
+        value = np.array(value)
     return value, metadata
 
 

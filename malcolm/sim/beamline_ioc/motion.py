@@ -128,6 +128,7 @@ class Trajectory:
             ZNAM="Done",
             ONAM="Build",
             on_update=self._build,
+            blocking=True,
             always_update=True,
         )
         builder.boolOut(
