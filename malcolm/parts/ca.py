@@ -199,8 +199,8 @@ class CAActionPart(Part):
             try:
                 await self._channels["put"].put(self.value, self.timeout)
                 reading = await status.get()
-            except ChannelError as e:
-                raise self._fail(str(e)) from None
+            except ChannelError as e:  # the same kind, naming the method
+                raise type(e)(f"{self._mri}.{self.name}: {e}") from None
             loop = asyncio.get_running_loop()
             deadline = loop.time() + self.timeout
             while str(reading.value) != self.good:

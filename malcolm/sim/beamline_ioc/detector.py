@@ -88,10 +88,14 @@ class PositionPlugin:
             rbv={"ZNAM": "Disable", "ONAM": "Enable"},
         )
         self.delete = builder.boolOut(
-            "Delete", ZNAM="Done", ONAM="Delete", on_update=self._delete
+            "Delete", ZNAM="Done", ONAM="Delete", on_update=self._delete, blocking=True
         )
         self.xml = builder.longStringOut(
-            "Filename", length=TEXT, on_update=self._load, always_update=True
+            "Filename",
+            length=TEXT,
+            on_update=self._load,
+            always_update=True,
+            blocking=True,  # the put completes once the positions are loaded
         )
         self.running_rbv = builder.boolIn(
             "Running_RBV", ZNAM="Idle", ONAM="Running", initial_value=0
