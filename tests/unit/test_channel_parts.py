@@ -116,12 +116,14 @@ def test_a_connection_lost_again_at_once_does_not_stop_the_block(monkeypatch):
     from malcolm.io import SoftChannel
 
     backend = SoftBackend()
+    connect = SoftChannel.connect
 
-    async def lost(self):
+    async def lost(self, timeout=None):  # connects, and is lost at once
+        info = await connect(self, timeout)
         backend.drop(self.read, "gone again")
-        raise DisconnectedError(f"{self.read}: gone again")
+        return info
 
-    monkeypatch.setattr(SoftChannel, "get", lost)
+    monkeypatch.setattr(SoftChannel, "connect", lost)
 
     async def scenario():
         process = det_process(backend)

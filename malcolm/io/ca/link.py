@@ -22,6 +22,7 @@ process whichever thread connects first.
 
 from __future__ import annotations
 
+import asyncio
 import ctypes
 import threading
 from collections.abc import Callable
@@ -30,7 +31,7 @@ from typing import Any, Protocol
 import numpy as np
 from epics import ca, dbr
 
-__all__ = ["Link", "LinkListener", "link"]
+__all__ = ["Link", "LinkListener", "flush_soon", "link"]
 
 #: what a get or an event gives: (value, metadata) or an error message
 Payload = tuple[Any, dict[str, Any]]
@@ -99,6 +100,37 @@ def _on_get(args: Any) -> None:
     del holder
 
 
+_flush_lock = threading.Lock()
+_flush_loops: set[asyncio.AbstractEventLoop] = set()
+
+
+def _flush() -> None:
+    _context()
+    ca.libca.ca_flush_io()
+
+
+def flush_soon() -> None:
+    """Send what libca has queued: once, at the end of this turn of the
+    running asyncio loop (so a thousand gets go in a few packets), or now
+    if no loop runs in this thread."""
+    try:
+        loop = asyncio.get_running_loop()
+    except RuntimeError:
+        _flush()
+        return
+    with _flush_lock:
+        if loop in _flush_loops:
+            return
+        _flush_loops.add(loop)
+
+    def flush() -> None:
+        with _flush_lock:
+            _flush_loops.discard(loop)
+        _flush()
+
+    loop.call_soon(flush)
+
+
 _CB_EVENT = dbr.make_callback(_on_event, dbr.event_handler_args)
 _CB_GET = dbr.make_callback(_on_get, dbr.event_handler_args)
 
@@ -118,10 +150,37 @@ class Link:
         self._subscriptions: list[tuple[ctypes.py_object, Any]] = []
         self._value: Payload | None = None
         self._info: Payload | None = None
+        #: subscribe once connected even with no listener (prefetch)
+        self._wanted = False
 
     # ---- listeners (any thread)
+    def prefetch(self) -> None:
+        """Connect and subscribe now, before any channel listens, keeping
+        the last value and control information to give the first listener
+        at once (a process connects many blocks one after another)."""
+        _context()
+        with self._lock:
+            self._wanted = True
+            first = self._chid is None
+            if not first and self.connected and not self._subscriptions:
+                self._subscribe()
+        if first:
+            self._create()
+
+    def _create(self) -> None:
+        # pyepics keeps one chid per name: this calls back at once if the PV
+        # is connected already (made by another library user)
+        chid = ca.create_channel(
+            self.name, connect=False, auto_cb=False, callback=self._on_connection
+        )
+        with self._lock:
+            if self._chid is None:
+                self._chid = chid
+        flush_soon()
+
     def attach(self, listener: LinkListener) -> None:
-        """Start telling ``listener``; connects the PV on first use."""
+        """Start telling ``listener``; connects the PV on first use. If the
+        PV is connected already, tells what it knows at once."""
         _context()
         with self._lock:
             self._listeners.append(listener)
@@ -131,14 +190,7 @@ class Link:
                 self._subscribe()
                 value = info = None  # the new subscriptions send them
         if first:
-            # pyepics keeps one chid per name: this calls back at once if the
-            # PV is connected already (made by another library user)
-            chid = ca.create_channel(
-                self.name, connect=False, auto_cb=False, callback=self._on_connection
-            )
-            with self._lock:
-                self._chid = chid
-            ca.flush_io()
+            self._create()
             return
         if connected:
             listener.link_connection(self, True)
@@ -156,10 +208,11 @@ class Link:
                 return
             subscriptions, self._subscriptions = self._subscriptions, []
             self._value = self._info = None
+            self._wanted = False
         _context()
         for _, evid in subscriptions:
             ca.libca.ca_clear_subscription(evid)
-        ca.flush_io()
+        flush_soon()
 
     def _tell(self) -> list[LinkListener]:
         with self._lock:
@@ -174,7 +227,8 @@ class Link:
             if conn:
                 self.ftype = ca.field_type(self._chid)
                 self.count = ca.element_count(self._chid)
-                if self._listeners and not self._subscriptions:
+                wanted = self._listeners or self._wanted
+                if wanted and not self._subscriptions:
                     self._subscribe()
             else:
                 self._value = self._info = None
@@ -231,7 +285,7 @@ class Link:
                 _pending_gets.pop(id(callback), None)
             callback(None, ca.message(status))
             return
-        ca.libca.ca_flush_io()
+        ca.libca.ca_flush_io()  # now: a get after a put waits for this one
 
     def put(self, value: Any, callback: Callable[[], None]) -> None:
         """Put ``value`` with a callback: ``callback()`` in libca's thread

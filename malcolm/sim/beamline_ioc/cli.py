@@ -12,12 +12,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--prefix", default="SIM", help="PV prefix of every record (default SIM)"
     )
+    parser.add_argument(
+        "--bench-blocks",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also serve benchmarks/ca.py's records: N blocks of 20 PVs and a ticker",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     from .ioc import run as serve
 
-    serve(args.prefix)
+    serve(args.prefix, args.bench_blocks)
     return 0
 
 

@@ -10,8 +10,9 @@ from .motion import Motor, Trajectory
 from .runner import READY
 
 
-def build(prefix: str) -> dict[str, object]:
-    """Make every record of the IOC under ``prefix``."""
+def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
+    """Make every record of the IOC under ``prefix`` (and, with
+    ``bench_blocks``, the benchmark's: :mod:`.bench`)."""
     from softioc import builder
 
     m1 = Motor(f"{prefix}:M1")
@@ -22,16 +23,20 @@ def build(prefix: str) -> dict[str, object]:
         "m2": m2,
         "trajectory": Trajectory(prefix, {"A": m1, "B": m2}),
     }
+    if bench_blocks:
+        from .bench import Bench
+
+        things["bench"] = Bench(prefix, bench_blocks)
     builder.LoadDatabase()
     return things
 
 
-def run(prefix: str) -> None:
+def run(prefix: str, bench_blocks: int = 0) -> None:
     """Serve the IOC until stdin closes or the process is signalled."""
     from softioc import asyncio_dispatcher, softioc
 
     dispatcher = asyncio_dispatcher.AsyncioDispatcher()
-    things = build(prefix)
+    things = build(prefix, bench_blocks)
     softioc.iocInit(dispatcher, enable_pva=False)
     print(f"{READY}: prefix {prefix}, {len(things)} devices", flush=True)
     try:

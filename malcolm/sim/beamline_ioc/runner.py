@@ -36,8 +36,14 @@ class SimIOC:
     serves; ``kill`` ends it at once (as a crash would); ``stop`` closes its
     stdin and waits."""
 
-    def __init__(self, prefix: str, env: Mapping[str, str] | None = None) -> None:
+    def __init__(
+        self,
+        prefix: str,
+        env: Mapping[str, str] | None = None,
+        bench_blocks: int = 0,
+    ) -> None:
         self.prefix = prefix
+        self.bench_blocks = bench_blocks
         self.env = {**os.environ, **ca_environment(), **(env or {})}
         self.process: subprocess.Popen[str] | None = None
         self.output: list[str] = []
@@ -46,7 +52,8 @@ class SimIOC:
         """Start the IOC; raises RuntimeError if it is not serving in time."""
         command = [sys.executable, "-m", "malcolm.sim.beamline_ioc"]
         self.process = subprocess.Popen(
-            [*command, "--prefix", self.prefix],
+            [*command, "--prefix", self.prefix]
+            + (["--bench-blocks", str(self.bench_blocks)] if self.bench_blocks else []),
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,

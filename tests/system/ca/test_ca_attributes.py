@@ -80,6 +80,7 @@ def test_a_put_completes_and_shows_the_readback(ioc):
             assert drv.xml.value == xml
             await process.put(["HDF", "fileTemplate"], "%s%s_x.h5")
             assert process.get_block("HDF").fileTemplate.value == "%s%s_x.h5"
+            await process.put(["HDF", "fileTemplate"], "%s%s.h5")
             await process.put(["TRAJ", "positionsA"], np.array([1.5, 2.5, 3.5]))
             traj = process.get_block("TRAJ")
             assert list(traj.positionsA.value[:3]) == [1.5, 2.5, 3.5]

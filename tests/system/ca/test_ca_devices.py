@@ -59,6 +59,7 @@ def test_the_hdf_writer_writes_tagged_frames_into_a_file(ioc, tmp_path):
             assert pos.positions.value == 6
             await put(["HDF", "filePath"], f"{tmp_path}/")
             await put(["HDF", "fileName"], "scan1")
+            await put(["HDF", "fileTemplate"], "%s%s.h5")
             await put(["HDF", "numCapture"], 6)
             await put(["HDF", "enableCallbacks"], True)
             await put(["DRV", "exposure"], 0.005)
