@@ -27,6 +27,7 @@ from malcolm.core import Alarm, AlarmStatus, Attribute, BadValueError, Meta
 from malcolm.fsm import Stateful
 from malcolm.io import (
     Channel,
+    ChannelError,
     ChannelInfo,
     ChannelTimeoutError,
     ConnectionState,
@@ -216,5 +217,10 @@ class ChannelPart(Part):
             raise DisconnectedError(
                 f"{self.write or self.read}: not connected (the block has not started)"
             )
-        await channel.put(value)
-        self._on_reading(await channel.get())
+        try:
+            await channel.put(value)
+            reading = await channel.get()
+        except ChannelError as e:  # the same kind, naming block and field
+            assert self._registrar is not None
+            raise type(e)(f"{self._registrar.mri}.{self.name}: {e}") from None
+        self._on_reading(reading)

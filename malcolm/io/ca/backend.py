@@ -196,6 +196,8 @@ class PyepicsChannel(Channel):
                 choices = self._choices(self.read)
                 index = int(value)
                 return choices[index] if 0 <= index < len(choices) else str(index)
+            if ftype == _CHAR and not isinstance(value, np.ndarray):
+                value = np.atleast_1d(value)  # a one-char waveform
             if isinstance(value, np.ndarray):
                 raw = value.astype(np.uint8).tobytes()
                 return raw.split(b"\0", 1)[0].decode("utf-8", "replace")

@@ -295,7 +295,9 @@ class Link:
         with self._lock:
             chid = self._chid
         try:
-            ca.put(chid, value, callback=lambda **_: callback())
+            # timeout: how long pyepics may wait for a connection it finds
+            # missing (the loop must not block): a put then fails at once
+            ca.put(chid, value, callback=lambda **_: callback(), timeout=0.05)
         except (ca.ChannelAccessException, TypeError, ValueError) as e:
             raise ValueError(str(e)) from None
 

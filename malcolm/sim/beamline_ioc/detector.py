@@ -88,7 +88,12 @@ class PositionPlugin:
             rbv={"ZNAM": "Disable", "ONAM": "Enable"},
         )
         self.delete = builder.boolOut(
-            "Delete", ZNAM="Done", ONAM="Delete", on_update=self._delete, blocking=True
+            "Delete",
+            ZNAM="Done",
+            ONAM="Delete",
+            on_update=self._delete,
+            always_update=True,  # every put of Delete clears
+            blocking=True,
         )
         self.xml = builder.longStringOut(
             "Filename",
@@ -157,7 +162,7 @@ class HDFWriter:
 
     def __init__(self, prefix: str) -> None:
         builder.SetDeviceName(f"{prefix}:HDF")
-        text = {"length": 1024}
+        text: dict[str, Any] = {"length": 1024, "rbv": {"length": 1024}}
         self.path, _ = demand(
             "FilePath", builder.longStringOut, builder.longStringIn, "/tmp/", **text
         )

@@ -168,3 +168,43 @@ def test_a_motor_stop_action_stops_a_move(ioc):
             await process.put(["M2", "position"], 0.0)
 
     run(scenario())
+
+
+def test_what_the_pv_cannot_take_is_refused_before_writing(ioc):
+    async def scenario():
+        async with started("HDF", "TRAJ") as process:
+            hdf, traj = process.get_block("HDF"), process.get_block("TRAJ")
+            await process.put(["HDF", "fileName"], "keep")
+            with pytest.raises(Exception) as info:  # a 1024-byte waveform
+                await process.put(["HDF", "fileName"], "x" * 2000)
+            assert "does not fit" in str(info.value), info.value
+            assert "HDF.fileName" in str(info.value), info.value
+            assert hdf.fileName.value == "keep"
+            raw = epics.caget(f"{PREFIX}:HDF:FileName_RBV", as_string=True)
+            assert raw == "keep"
+            before = traj.positionsA.value
+            with pytest.raises(Exception, match="1001 values do not fit in 1000"):
+                await process.put(["TRAJ", "positionsA"], np.zeros(1001))
+            assert traj.positionsA.value == before
+
+    run(scenario())
+
+
+def test_an_alarm_of_the_pv_reaches_the_attribute(ioc):
+    async def scenario():
+        async with started("POS") as process:
+            pos = process.get_block("POS")
+            await process.put(["POS", "delete"], True)
+            await process.put(["POS", "xml"], "<pos_layout><positions>")  # broken
+            await until(
+                lambda: pos.positions.alarm.severity is AlarmSeverity.MAJOR_ALARM,
+                what="MAJOR alarm on Qty",
+            )
+            assert pos.positions.alarm.message == "STATE"
+            good = '<pos_layout><positions><position x="1"/></positions></pos_layout>'
+            await process.put(["POS", "xml"], good)
+            await until(lambda: pos.positions.alarm.severity == 0, what="cleared")
+            assert pos.positions.value == 1
+            await process.put(["POS", "delete"], True)
+
+    run(scenario())
