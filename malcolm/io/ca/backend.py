@@ -269,7 +269,9 @@ class PyepicsChannel(Channel):
     def _settle(self, fut: asyncio.Future[Any], result: Any, error: str) -> None:
         if fut.done():
             return
-        if error:
+        if error.startswith("put failed"):
+            fut.set_exception(ChannelError(f"{self.write}: {error}"))
+        elif error:
             fut.set_exception(DisconnectedError(f"{self.read}: {error}"))
         else:
             fut.set_result(result)
@@ -297,8 +299,8 @@ class PyepicsChannel(Channel):
         converted = self._to_pv(value)
         fut = self._future()
 
-        def done() -> None:
-            self._on_loop(self._settle, fut, None, "")
+        def done(_: Any, error: str) -> None:
+            self._on_loop(self._settle, fut, None, error)
 
         try:
             self._links[self.write].put(converted, done)

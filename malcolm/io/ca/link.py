@@ -287,19 +287,66 @@ class Link:
             return
         ca.libca.ca_flush_io()  # now: a get after a put waits for this one
 
-    def put(self, value: Any, callback: Callable[[], None]) -> None:
-        """Put ``value`` with a callback: ``callback()`` in libca's thread
-        once the IOC has processed it. Raises ValueError for a value the PV
-        cannot take."""
+    def put(self, value: Any, callback: GetCallback) -> None:
+        """Put ``value`` with a callback (``ca_array_put_callback``):
+        ``callback(None, "")`` in libca's thread once the IOC has processed
+        it, ``callback(None, why)`` if it failed. Raises ValueError for a
+        value the PV cannot take (nothing is sent)."""
         _context()
         with self._lock:
-            chid = self._chid
-        try:
-            # timeout: how long pyepics may wait for a connection it finds
-            # missing (the loop must not block): a put then fails at once
-            ca.put(chid, value, callback=lambda **_: callback(), timeout=0.05)
-        except (ca.ChannelAccessException, TypeError, ValueError) as e:
-            raise ValueError(str(e)) from None
+            chid, ftype, count = self._chid, self.ftype, self.count
+            connected = self.connected
+        if not connected or ftype is None:
+            callback(None, "not connected")
+            return
+        data, n = _marshal(value, ftype, count)
+        uarg = ctypes.py_object(callback)
+        with _pending_lock:
+            _pending_puts[id(callback)] = uarg
+        status = ca.libca.ca_array_put_callback(ftype, n, chid, data, _CB_PUT, uarg)
+        if status != dbr.ECA_NORMAL:
+            with _pending_lock:
+                _pending_puts.pop(id(callback), None)
+            callback(None, ca.message(status))
+            return
+        ca.libca.ca_flush_io()
+
+
+def _marshal(value: Any, ftype: int, count: int) -> tuple[Any, int]:
+    """``value`` as a ctypes array of the PV's native type, and its length."""
+    if ftype == dbr.STRING:
+        data = (1 * dbr.Map[dbr.STRING])()
+        data[0].value = str(value).encode("utf-8")[:39]
+        return data, 1
+    values = np.atleast_1d(np.asarray(value))
+    if values.ndim != 1 or values.dtype.kind not in "biuf":
+        raise ValueError(f"{value!r} is not a number or an array of numbers")
+    n = min(len(values), count) or 1
+    data = (n * dbr.Map[ftype])()
+    try:
+        data[: len(values[:n])] = values[:n].tolist()
+    except TypeError:  # a float for an integer PV
+        if not np.all(np.equal(np.mod(values[:n], 1), 0)):
+            raise ValueError(f"{value!r} is not whole for an integer PV") from None
+        data[: len(values[:n])] = values[:n].astype(np.int64).tolist()
+    return data, n
+
+
+#: callbacks of puts in flight: kept alive until libca calls them
+_pending_puts: dict[int, ctypes.py_object] = {}
+
+
+def _on_put(args: Any) -> None:
+    with _pending_lock:
+        holder = _pending_puts.pop(id(args.usr), None)
+    callback = args.usr
+    if callable(callback):
+        ok = args.status == dbr.ECA_NORMAL
+        callback(None, "" if ok else f"put failed: {ca.message(args.status)}")
+    del holder
+
+
+_CB_PUT = dbr.make_callback(_on_put, dbr.event_handler_args)
 
 
 _links: dict[str, Link] = {}
