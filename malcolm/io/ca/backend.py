@@ -114,7 +114,9 @@ class PyepicsChannel(Channel):
         self._links: dict[str, Link] = {name: link(name) for name in names}
         self._up: dict[str, bool] = dict.fromkeys(names, False)
         self._infos: dict[str, dict[str, Any]] = {}
-        self._reading: Reading | None = None
+        #: the readback's last value event, converted once connected (an
+        #: enum's labels may arrive after its first value)
+        self._payload: Payload | None = None
         self._pending: set[asyncio.Future[Any]] = set()
         self._ever = False  # connected once: a loss is "connection lost"
 
@@ -145,7 +147,7 @@ class PyepicsChannel(Channel):
             return  # ready once its info (and value) arrive
         self._infos.pop(name, None)
         if name == self.read:
-            self._reading = None
+            self._payload = None
         why = "connection lost" if self._ever else "not connected yet"
         self._fail_pending(DisconnectedError(f"{name}: {why}"))
         state = ConnectionState.DISCONNECTED if self._ever else self.state
@@ -157,20 +159,20 @@ class PyepicsChannel(Channel):
         self._check_ready()
 
     def _value(self, payload: Payload) -> None:
-        self._reading = self._convert(payload)
+        self._payload = payload
         if self.state is ConnectionState.CONNECTED:
-            self._deliver(self._reading)
+            self._deliver(self._convert(payload))
         else:
             self._check_ready()
 
     def _check_ready(self) -> None:
-        if self.state is ConnectionState.CONNECTED or self._reading is None:
+        if self.state is ConnectionState.CONNECTED or self._payload is None:
             return
         if all(self._up.values()) and set(self._infos) == set(self._links):
             self._ever = True
             self._change_state(ConnectionState.CONNECTED, "")
             if self.state is ConnectionState.CONNECTED:
-                self._deliver(self._reading)
+                self._deliver(self._convert(self._payload))
 
     def _fail_pending(self, error: Exception) -> None:
         for fut in list(self._pending):
@@ -290,9 +292,7 @@ class PyepicsChannel(Channel):
             raise ChannelTimeoutError(
                 f"{self.read}: no answer to a get within {GET_TIMEOUT} s"
             ) from None
-        reading = self._convert(payload)
-        self._reading = reading
-        return reading
+        return self._convert(payload)
 
     async def _put(self, value: Any) -> None:
         assert self.write is not None
