@@ -22,6 +22,10 @@ def test_killing_the_ioc_invalidates_and_restarting_recovers(ioc):
             drv = process.get_block("DRV")
             await process.put(["DRV", "exposure"], 0.5)
             assert drv.health.value == "OK"
+            m1 = process.get_block("M1")
+            # a move of 5 s at 10 mm/s: its put is in flight when the IOC dies
+            moving = asyncio.ensure_future(process.put(["M1", "position"], 50.0))
+            await until(lambda: m1.doneMoving.value is False, what="M1 moving")
 
             ioc.kill()
             took = await until(
@@ -40,8 +44,10 @@ def test_killing_the_ioc_invalidates_and_restarting_recovers(ioc):
             for name in ("numImages", "imageMode", "manufacturer", "xml"):
                 assert drv[name].alarm.severity is AlarmSeverity.INVALID_ALARM
             assert drv.state.value == "Ready"  # the state is left as it was
-            m1 = process.get_block("M1")
             await until(lambda: m1.health.value != "OK", LOST_WITHIN, "M1 health")
+            # the put in flight fails (naming block and field), it does not hang
+            with pytest.raises(DisconnectedError, match="M1.position: "):
+                await asyncio.wait_for(moving, LOST_WITHIN)
             # a caller is never hung: a put fails at once, naming the PV
             with pytest.raises(DisconnectedError, match="CATEST:CAM:Exposure"):
                 await asyncio.wait_for(process.put(["DRV", "exposure"], 0.2), 2)
