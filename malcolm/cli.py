@@ -235,6 +235,10 @@ def build_parser() -> argparse.ArgumentParser:
     serve.set_defaults(func=cmd_serve)
 
     sim_ioc_cli.add_parser(commands)
+    from malcolm.sim.zebra2.cli import add_parser as add_sim_zebra2
+
+    add_sim_zebra2(commands)
+
     return parser
 
 
