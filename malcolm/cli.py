@@ -42,7 +42,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     generator = demo_generator(duration=args.duration) if args.scan else None
     try:
-        return asyncio.run(serve_demo(args.scan, generator=generator, freeze=True))
+        return asyncio.run(
+            serve_demo(
+                args.scan, generator=generator, freeze=True, pva_port=args.pva_port
+            )
+        )
     except Exception as e:  # no traceback reaches a user
         print(f"malcolm demo: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -119,7 +123,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         sys.stdout.flush()
 
     try:
-        asyncio.run(serve(process, ready, freeze=True))
+        asyncio.run(serve(process, ready, freeze=True, pva_port=args.pva_port))
     except Exception as e:
         print(f"malcolm serve: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -140,6 +144,28 @@ def _seconds(text: str) -> float:
             f"expected a positive number of seconds, got {text!r}"
         )
     return value
+
+
+def _port(text: str) -> int:
+    """A TCP port number, 0 to 65535 (for argparse)."""
+    try:
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"expected a port 0-65535, got {text!r}")
+    return port
+
+
+def add_pva_port(parser: argparse.ArgumentParser) -> None:
+    """``--pva-port`` of serve and demo (docs/pva.md)."""
+    parser.add_argument(
+        "--pva-port",
+        type=_port,
+        default=5075,
+        metavar="PORT",
+        help="serve the blocks over pvAccess on PORT (default 5075; 0: off)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -180,6 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="seconds per point of the --scan (default 0.05)",
     )
+    add_pva_port(demo)
     demo.set_defaults(func=cmd_demo)
 
     graph = commands.add_parser(
@@ -245,12 +272,17 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME",
         help="channel backend of ca.* attributes (default pyepics; soft: in memory)",
     )
+    add_pva_port(serve)
     serve.set_defaults(func=cmd_serve)
 
     sim_ioc_cli.add_parser(commands)
     from malcolm.sim.zebra2.cli import add_parser as add_sim_zebra2
 
     add_sim_zebra2(commands)
+
+    from malcolm.io.pva.client_cli import add_parsers as add_pva_client
+
+    add_pva_client(commands)  # get, put, call, ls (docs/pva-client.md)
 
     return parser
 

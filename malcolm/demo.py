@@ -124,11 +124,13 @@ async def serve_demo(
     signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM),
     generator: dict[str, Any] | None = None,
     freeze: bool = False,
+    pva_port: int = 0,
 ) -> int:
     """Serve the demo process until one of ``signals``, or run its scan
     (``generator``, by default :func:`demo_generator`'s grid). ``freeze``
     builds and starts it under :func:`malcolm.core.long_lived` (the command
-    line does: its blocks live until the program ends).
+    line does: its blocks live until the program ends). ``pva_port`` (if not
+    0) serves the blocks over pvAccess on that port, from before they start.
 
     The exit status: 0 once the scan has Finished (``scan``), or when serving
     is stopped by a signal; ``128 + signal`` (130 for SIGINT, 143 for
@@ -148,13 +150,24 @@ async def serve_demo(
 
     for sig in signals:
         loop.add_signal_handler(sig, on_signal, sig)
+    pva = None
     try:
         with long_lived() if freeze else contextlib.nullcontext():
             process = demo_process()
+            if pva_port:
+                from malcolm.io.pva import start_pva_server
+                from malcolm.io.pva.client_blocklist import add_block_list
+
+                pva = await start_pva_server(process, pva_port)
+                add_block_list(process)  # for malcolm ls (docs/pva-client.md)
             await process.start()
         try:
+            if pva is not None:
+                out.write(f"malcolm demo: pvAccess on {pva.address}\n")
             status = await _demo(process, scan, generator, stop, received, out, err)
         finally:
+            if pva is not None:
+                await pva.close()
             await process.stop()
     finally:
         for sig in signals:

@@ -50,6 +50,7 @@ from .inspection import hook_functions
 from .plan import BlockPlan, Item, Planner, part_kind
 from .process_file import expand_process, load_process_file
 from .registry import is_builtin
+from .remote import make_remote_block
 
 __all__ = [
     "build_block",
@@ -116,6 +117,8 @@ class _Builder:
         if item is None or item.factory is None or not self.make(item.factory):
             return None
         controller = self.call(item)
+        if item.factory is make_remote_block:
+            return controller  # a block mirrored from another process
         if controller is not None and not isinstance(controller, Controller):
             self.problems.add(
                 item.file,

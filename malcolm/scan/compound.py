@@ -245,6 +245,10 @@ def compound_points(data: Mapping[str, Any]) -> ScanPoints:
             seen[axis] = gen.path
 
     if duration is not None and duration < 0:
+        if duration != -1:  # issue 9: a negative duration is refused
+            raise GeneratorError(
+                "duration", f"expected at least 0 (or -1: none), got {duration}"
+            )
         duration = None  # scanpointgenerator's -1: no fixed duration
 
     remaining = []
