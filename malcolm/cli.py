@@ -42,9 +42,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     generator = demo_generator(duration=args.duration) if args.scan else None
     try:
+        zebra2 = getattr(args, "zebra2", False)
         return asyncio.run(
             serve_demo(
-                args.scan, generator=generator, freeze=True, pva_port=args.pva_port
+                args.scan,
+                generator=generator,
+                freeze=True,
+                pva_port=args.pva_port,
+                zebra2=zebra2,
             )
         )
     except Exception as e:  # no traceback reaches a user
@@ -207,6 +212,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="seconds per point of the --scan (default 0.05)",
     )
     add_pva_port(demo)
+    demo.add_argument(
+        "--zebra2",
+        action="store_true",
+        help="add a simulated Zebra2 box, its manager ZEBRA2 and ZEBRA2:CAPTURE",
+    )
     demo.set_defaults(func=cmd_demo)
 
     graph = commands.add_parser(

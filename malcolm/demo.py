@@ -125,12 +125,15 @@ async def serve_demo(
     generator: dict[str, Any] | None = None,
     freeze: bool = False,
     pva_port: int = 0,
+    zebra2: bool = False,
 ) -> int:
     """Serve the demo process until one of ``signals``, or run its scan
     (``generator``, by default :func:`demo_generator`'s grid). ``freeze``
     builds and starts it under :func:`malcolm.core.long_lived` (the command
     line does: its blocks live until the program ends). ``pva_port`` (if not
     0) serves the blocks over pvAccess on that port, from before they start.
+    ``zebra2`` adds a simulated Zebra2 box with its manager (``ZEBRA2``) and
+    capture block (:mod:`malcolm.parts.zebra2_demo`).
 
     The exit status: 0 once the scan has Finished (``scan``), or when serving
     is stopped by a signal; ``128 + signal`` (130 for SIGINT, 143 for
@@ -152,6 +155,7 @@ async def serve_demo(
         loop.add_signal_handler(sig, on_signal, sig)
     pva = None
     try:
+        box = None
         with long_lived() if freeze else contextlib.nullcontext():
             process = demo_process()
             if pva_port:
@@ -160,6 +164,14 @@ async def serve_demo(
 
                 pva = await start_pva_server(process, pva_port)
                 add_block_list(process)  # for malcolm ls (docs/pva-client.md)
+            if zebra2:
+                from malcolm.parts.zebra2_demo import start_demo_zebra2
+
+                box = await start_demo_zebra2(process)
+                out.write(
+                    f"malcolm demo: simulated Zebra2 box: control {box.host}:"
+                    f"{box.control_port}, data {box.host}:{box.data_port}\n"
+                )
             await process.start()
         try:
             if pva is not None:
@@ -169,6 +181,8 @@ async def serve_demo(
             if pva is not None:
                 await pva.close()
             await process.stop()
+            if box is not None:
+                await box.close()
     finally:
         for sig in signals:
             loop.remove_signal_handler(sig)

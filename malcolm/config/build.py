@@ -177,7 +177,9 @@ class _Builder:
                 continue
             owners[part.name] = item.line
             for name, old in before.items():
-                if controller.block[name] is not old:
+                # configure()/validate() are remade when a part adds arguments
+                remade = name in controller.model.methods
+                if controller.block[name] is not old and not remade:
                     self.problems.add(
                         item.file,
                         item.line,

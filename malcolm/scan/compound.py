@@ -205,7 +205,11 @@ def _check_finite(generators: list[Generator], bounded: Generator | None) -> Non
     few values per generator (`Generator.extremes`)."""
     for gen in generators:
         for path, axis, values in gen.extremes(bounds=gen is bounded):
-            if not np.all(np.isfinite(values)):
+            if isinstance(values, np.ndarray):
+                finite = bool(np.all(np.isfinite(values)))
+            else:  # a few Python floats (a line's)
+                finite = all(math.isfinite(v) for v in values)
+            if not finite:
                 raise GeneratorError(
                     path,
                     f"positions or bounds of axis {axis!r} are not all finite "
