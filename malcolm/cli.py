@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from malcolm.sim.beamline_ioc import cli as sim_ioc_cli
+
 
 def cmd_points(args: argparse.Namespace) -> int:
     """Print every point of the scan described in ``args.file`` as one JSON
@@ -109,6 +111,14 @@ def cmd_serve(args: argparse.Namespace) -> int:
     except Exception as e:  # no traceback reaches a user
         print(f"malcolm serve: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
+    if args.ca_backend:  # e.g. soft: the ca.* attributes with no IOC
+        from malcolm.io import use_backend
+
+        try:
+            use_backend(process, "ca", args.ca_backend)
+        except ValueError as e:  # a name no backend is registered under
+            print(f"malcolm serve: --ca-backend: {e}", file=sys.stderr)
+            return 1
 
     def ready(p) -> None:
         print(f"malcolm serve: {len(p.mris)} blocks of {args.file} are running:")
@@ -267,9 +277,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="look for definitions in DIR too (repeatable)",
     )
     serve.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    serve.add_argument(
+        "--ca-backend",
+        metavar="NAME",
+        help="channel backend of ca.* attributes (default pyepics; soft: in memory)",
+    )
     add_pva_port(serve)
     serve.set_defaults(func=cmd_serve)
 
+    sim_ioc_cli.add_parser(commands)
     from malcolm.sim.zebra2.cli import add_parser as add_sim_zebra2
 
     add_sim_zebra2(commands)

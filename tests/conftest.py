@@ -2,12 +2,17 @@
 
 import gc
 import logging
+import os
 import warnings
 
 import pytest
 
 from malcolm.core import enable_loop_guard
 from malcolm.core.threads import guard_trips
+
+# ca.* attributes of blocks built in tests talk to the in-memory soft backend
+# unless a test chooses pyepics itself (tests/system/ca: a real IOC)
+os.environ.setdefault("MALCOLM_CA_BACKEND", "soft")
 
 
 @pytest.fixture(autouse=True)

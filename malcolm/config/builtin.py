@@ -42,6 +42,7 @@ from malcolm.controllers.manager import ManagerController
 from malcolm.controllers.runnable import RunnableController
 from malcolm.controllers.stateful import StatefulController
 from malcolm.parts import adcore, soft, zebra2_capture, zebra2_manager
+from malcolm.parts import ca as ca_parts
 from malcolm.parts.base import Part
 from malcolm.parts.demo import (
     CounterPart,
@@ -102,6 +103,9 @@ _BUILTINS: dict[str, Any] = {
     "ca.Enum": soft.CAEnumPart,
     "ca.Bool": soft.CABoolPart,
     "ca.Table": soft.CATablePart,
+    "ca.DoubleArray": ca_parts.CADoubleArrayPart,
+    "ca.LongArray": ca_parts.CALongArrayPart,
+    "ca.Action": ca_parts.CAActionPart,
     "parts.HelloPart": HelloPart,
     "parts.CounterPart": CounterPart,
     "parts.SimMotorPart": SimMotorPart,

@@ -5,6 +5,7 @@ See docs/channels.md. ``malcolm.io.channel`` is the protocol,
 process chooses a backend per transport.
 """
 
+from . import ca  # noqa: E402,F401  (registers the pyepics backend of "ca")
 from .backends import backend_for, backend_names, register_backend, use_backend
 from .channel import (
     Backend,

@@ -8,8 +8,8 @@ chosen in this order:
 2. ``Process(channels={"ca": "soft"})``;
 3. the environment variable ``MALCOLM_<TRANSPORT>_BACKEND``
    (``MALCOLM_CA_BACKEND=soft``);
-4. the transport's default: ``soft`` until a real adapter registers itself
-   as the default.
+4. the transport's default: ``soft`` unless a real adapter registered
+   itself as the default (``ca``: pyepics, :mod:`malcolm.io.ca`).
 
 ``soft`` (:class:`~malcolm.io.soft.SoftBackend`) is registered for every
 transport. The backend object is made the first time a part asks

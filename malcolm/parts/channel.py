@@ -19,6 +19,7 @@ condition"). The Disable phase closes the channel.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -26,6 +27,7 @@ from malcolm.core import Alarm, AlarmStatus, Attribute, BadValueError, Meta
 from malcolm.fsm import Stateful
 from malcolm.io import (
     Channel,
+    ChannelError,
     ChannelInfo,
     ChannelTimeoutError,
     ConnectionState,
@@ -46,6 +48,27 @@ __all__ = ["CONNECT_TIMEOUT", "ChannelPart"]
 CONNECT_TIMEOUT = 5.0
 
 NOT_CONNECTED = "not connected yet"
+
+
+#: backends already asked to prefetch their process's channels
+_prefetched: weakref.WeakSet[Any] = weakref.WeakSet()
+
+
+def _prefetch(backend: Any, process: Any, transport: str) -> None:
+    """Let a backend that can (``prefetch(names)``, the pyepics one) start
+    connecting every channel of the process's ChannelParts at the first
+    Reset: blocks start one after another, their channels then connect
+    together rather than one block's at a time."""
+    prefetch = getattr(backend, "prefetch", None)
+    if prefetch is None or backend in _prefetched:
+        return
+    _prefetched.add(backend)
+    names: dict[str, None] = {}
+    for mri in process.mris:
+        for part in process.get_controller(mri).parts.values():
+            if isinstance(part, ChannelPart) and part.transport == transport:
+                names.update(dict.fromkeys(n for n in (part.read, part.write) if n))
+    prefetch(list(names))
 
 
 class ChannelPart(Part):
@@ -70,6 +93,8 @@ class ChannelPart(Part):
         self._registrar: PartRegistrar | None = None
         self._ends: list[Callable[[], None]] = []
         self._alarm = Alarm.ok  # the alarm of the last reading
+        #: the reading the subscription gave since the channel (re)connected
+        self._fresh: Reading | None = None
 
     def attribute_meta(self) -> Meta:
         """The attribute's meta, before the channel reports anything."""
@@ -98,6 +123,7 @@ class ChannelPart(Part):
         channel = self.channel
         if channel is None or channel.state is ConnectionState.CLOSED:
             backend = backend_for(task.process, self.transport)
+            _prefetch(backend, task.process, self.transport)
             channel = backend.channel(
                 self.read, self.write, default=self.attr.meta.default()
             )
@@ -110,7 +136,9 @@ class ChannelPart(Part):
             return
         try:
             info = await channel.connect(self.connect_timeout)
-            reading = await channel.get()
+            # a channel's subscribers get a reading first on connecting: no
+            # need to ask again (a CA get each, thousands at start-up)
+            reading = self._fresh or await channel.get()
         except ChannelTimeoutError:
             self._on_connection(channel.state, channel.message or NOT_CONNECTED)
             return
@@ -147,6 +175,7 @@ class ChannelPart(Part):
             if self.attr.alarm.status is AlarmStatus.CLIENT_STATUS:
                 self.attr.set_alarm(self._alarm)
         elif state in (ConnectionState.CONNECTING, ConnectionState.DISCONNECTED):
+            self._fresh = None
             names = [n for n in (self.read, self.write) if n]
             named = any(n in message for n in names)
             text = message if named else f"{name}: {message}"
@@ -162,6 +191,9 @@ class ChannelPart(Part):
 
     def _on_reading(self, reading: Reading) -> None:
         assert self.attr is not None
+        channel = self.channel
+        if channel is not None and channel.state is ConnectionState.CONNECTED:
+            self._fresh = reading
         try:
             value = self.attr.validate(self._value(reading))
         except BadValueError as e:
@@ -185,5 +217,10 @@ class ChannelPart(Part):
             raise DisconnectedError(
                 f"{self.write or self.read}: not connected (the block has not started)"
             )
-        await channel.put(value)
-        self._on_reading(await channel.get())
+        try:
+            await channel.put(value)
+            reading = await channel.get()
+        except ChannelError as e:  # the same kind, naming block and field
+            assert self._registrar is not None
+            raise type(e)(f"{self._registrar.mri}.{self.name}: {e}") from None
+        self._on_reading(reading)

@@ -3,8 +3,8 @@
 A ``ca.Double`` (``ca.LongString``, ``ca.Enum``...) section of a definition
 makes one attribute bound to a PV pair: read from the readback ``rbv``,
 written (if writeable) to ``pv``. The channel comes from the ``ca`` backend
-the process chose (:mod:`malcolm.io.backends`; ``soft``, in memory, until
-the Channel Access adapter exists): see :class:`~malcolm.parts.channel.
+the process chose (:mod:`malcolm.io.backends`; pyepics by default,
+:mod:`malcolm.io.ca`, or ``soft``, in memory): see :class:`~malcolm.parts.channel.
 ChannelPart` for connecting, alarms, health and puts, and docs/channels.md.
 
 - ``writeable: true`` lets the attribute be put (a put with completion to

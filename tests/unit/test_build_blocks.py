@@ -48,7 +48,9 @@ def test_detector_driver_attributes():
     assert type(controller) is StatefulController  # the default controller
     block = controller.block
     fields = [n for n in block if n not in ("health", "state", "reset", "disable")]
-    assert fields == ["configuration", "exposure", "xml", "acquire"]
+    # the design document's fields first, then the packaged driver's extras
+    assert fields[:4] == ["configuration", "exposure", "xml", "acquire"]
+    assert "numImages" in fields and "imageMode" in fields
 
     group = block.configuration.meta
     assert isinstance(group, ChoiceMeta)
@@ -61,7 +63,7 @@ def test_detector_driver_attributes():
     assert isinstance(exposure, NumberMeta) and exposure.dtype == "float64"
     assert exposure.description == "Exposure time for each frame"
     assert exposure.tags == ("widget:textinput", "group:configuration")
-    assert exposure.writeable is False  # no `writeable: true`: no put method
+    assert exposure.writeable is True  # the packaged driver can set it
 
     xml = block.xml.meta
     assert isinstance(xml, StringMeta)
@@ -91,7 +93,7 @@ def test_soft_channels_take_puts_of_writeable_attributes():
         await process.put(["DRV", "xml"], "<xml/>")
         await process.put(["DRV", "acquire"], 1)
         with pytest.raises(NotWriteableError):
-            await process.put(["DRV", "exposure"], 0.1)
+            await process.put(["DRV", "numImagesCounter"], 3)
         await process.put(["DRV", "configuration"], "collapsed")
         await process.stop()
 
@@ -105,8 +107,9 @@ def test_soft_channels_take_puts_of_writeable_attributes():
     assert parts["xml"].channel.write == "BL:Filename"
     assert records["BL:Filename"].value == "<xml/>"
     assert records["BL:Filename"].puts == 1
-    assert parts["exposure"].channel.write is None  # read-only: no put channel
-    assert records["BL:Exposure_RBV"].puts == 0
+    # read-only: no put channel
+    assert parts["numImagesCounter"].channel.write is None
+    assert records["BL:NumImagesCounter_RBV"].puts == 0
 
 
 def test_manager_example_makes_its_child_and_attaches_its_client():
@@ -129,8 +132,7 @@ def test_manager_example_makes_its_child_and_attaches_its_client():
     assert list(manager.parts) == ["pos", "drv"]
 
     child = process.get_block("BL18I:DET:pos")
-    assert child.xml.meta.writeable and child.queued.value == 0
-    assert child.queued.meta.display == {"limitHigh": 100}
+    assert child.xml.meta.writeable and child.positions.value == 0
     assert process.get_controller("BL18I:DET:pos").parts["xml"].pv == (
         "BL18I-DET:POS:Filename"
     )
@@ -231,6 +233,11 @@ def test_pos_plugin_part_runs_a_scan_on_the_simulated_manager():
 PACKAGE_VALUES = {
     "ADCore.NDPosPlugin": {"prefix": "BL"},
     "ADCore.SimDetector": {"prefix": "BL"},
+    "ADCore.DetectorDriver": {"prefix": "BL"},
+    "ADCore.PositionPlugin": {"prefix": "BL"},
+    "ADCore.HDFWriter": {"prefix": "BL"},
+    "motor.MotorRecord": {"prefix": "BL:M1"},
+    "pmac.TrajectoryScan": {"prefix": "BL"},
     "demo.Scan": {"det1": "D1", "det2": "D2", "x": "X", "y": "Y"},
 }
 
@@ -241,7 +248,8 @@ PACKAGE_VALUES = {
         n
         for n in available_definitions()
         # demo/process.yaml is the demo's process file, not a definition
-        if n.split(".")[0] in ("ADCore", "demo") and n != "demo.process"
+        if n.split(".")[0] in ("ADCore", "demo", "motor", "pmac")
+        and n != "demo.process"
     ],
 )
 def test_every_package_definition_builds(name):

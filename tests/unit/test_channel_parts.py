@@ -23,6 +23,7 @@ from malcolm.io import (
     register_backend,
     use_backend,
 )
+from malcolm.io.ca.backend import PyepicsBackend
 from malcolm.parts.soft import CADoublePart, CAEnumPart
 
 from .scans import run
@@ -115,12 +116,14 @@ def test_a_connection_lost_again_at_once_does_not_stop_the_block(monkeypatch):
     from malcolm.io import SoftChannel
 
     backend = SoftBackend()
+    connect = SoftChannel.connect
 
-    async def lost(self):
+    async def lost(self, timeout=None):  # connects, and is lost at once
+        info = await connect(self, timeout)
         backend.drop(self.read, "gone again")
-        raise DisconnectedError(f"{self.read}: gone again")
+        return info
 
-    monkeypatch.setattr(SoftChannel, "get", lost)
+    monkeypatch.setattr(SoftChannel, "connect", lost)
 
     async def scenario():
         process = det_process(backend)
@@ -265,7 +268,8 @@ register_backend("ca", "recording", Recording)
 
 def test_the_backend_is_chosen_per_process(monkeypatch):
     monkeypatch.delenv("MALCOLM_CA_BACKEND", raising=False)
-    assert type(backend_for(Process(), "ca")) is SoftBackend  # the default
+    # the default: pyepics (it imports here)
+    assert type(backend_for(Process(), "ca")) is PyepicsBackend
     chosen = backend_for(Process(channels={"ca": "recording"}), "ca")
     assert type(chosen) is Recording
     monkeypatch.setenv("MALCOLM_CA_BACKEND", "recording")
@@ -284,14 +288,14 @@ def test_an_unknown_backend_faults_the_block_naming_it(monkeypatch):
     monkeypatch.delenv("MALCOLM_CA_BACKEND", raising=False)
 
     async def scenario():
-        process = det_process(channels={"ca": "pyepics"})
+        process = det_process(channels={"ca": "nosuch"})
         await process.start()
         block = process.get_block("DRV")
         return block.state.value, block.health.value
 
     state, health = run(scenario)
     assert state == "Fault"
-    assert "no 'ca' channel backend called 'pyepics' (there are: soft" in health
+    assert "no 'ca' channel backend called 'nosuch' (there are: soft" in health
 
 
 def test_a_definition_is_untouched_by_the_backend():

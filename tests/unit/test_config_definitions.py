@@ -33,8 +33,10 @@ def write(tmp_path, name, text):
 
 def test_search_path_starts_with_the_package_blocks():
     assert full_search_path([BLOCKS, BLOCKS]) == [BLOCKS_DIR, BLOCKS]
+    # the package's own definitions come first (the detector manager fixture
+    # uses the packaged ADCore.PositionPlugin and ADCore.DetectorDriver)
     assert find_definition("ADCore.PositionPlugin", SEARCH) == (
-        BLOCKS / "ADCore" / "PositionPlugin.yaml"
+        BLOCKS_DIR / "ADCore" / "PositionPlugin.yaml"
     )
     assert "demo.DetectorManager" in available_definitions(SEARCH)
 
@@ -56,8 +58,10 @@ def test_detector_driver_expands_with_prefix():
     block = expand(definition, {"prefix": "BL18I-DET"}, SEARCH, mri="BL18I:DRV")
     assert block.mri == "BL18I:DRV"
     assert [g.params["name"] for g in block.groups] == ["configuration"]
-    assert [s.kind for s in block.sections] == ["ca.Double", "ca.LongString", "ca.Enum"]
-    assert [s.params["pv"] for s in block.sections] == [
+    # the design document's three sections first, then the packaged extras
+    kinds = [s.kind for s in block.sections]
+    assert kinds[:3] == ["ca.Double", "ca.LongString", "ca.Enum"]
+    assert [s.params["pv"] for s in block.sections[:3]] == [
         "BL18I-DET:Exposure",
         "BL18I-DET:Filename",
         "BL18I-DET:Acquire",
@@ -74,11 +78,9 @@ def test_manager_expands_children_and_records_clients():
     assert (child.name, child.part, child.line) == ("pos", "PosPluginPart", 9)
     assert child.block.mri == "BL18I:DET:pos"
     assert child.block.definition == "ADCore.PositionPlugin"
-    assert child.block.params == {"prefix": "BL18I-DET", "queue": 100}
-    pv, queued = child.block.sections
-    assert pv.params["pv"] == "BL18I-DET:POS:Filename"
-    # a whole-string reference keeps the Int type of the parameter
-    assert queued.params["high"] == 100
+    assert child.block.params == {"prefix": "BL18I-DET"}
+    pvs = {s.params["name"]: s.params.get("pv") for s in child.block.sections}
+    assert pvs["xml"] == "BL18I-DET:POS:Filename"
     (client,) = block.clients
     assert client.definition == "ADCore.DetectorDriver"
     assert (client.name, client.fullname, client.part) == (

@@ -38,7 +38,7 @@ def test_beamline_process_file():
         "BL18I:SCAN",
     ]
     assert blocks[1].children[0].block.sections[0].params["pv"] == (
-        "BL18I-EA-DET-01:POS:Filename"
+        "BL18I-EA-DET-01:POS:Delete"
     )
 
 

@@ -1,0 +1,46 @@
+"""Build and run the simulated beamline IOC (one per process: softioc)."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from .detector import make_detector
+from .motion import Motor, Trajectory
+from .runner import READY
+
+
+def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
+    """Make every record of the IOC under ``prefix`` (and, with
+    ``bench_blocks``, the benchmark's: :mod:`.bench`)."""
+    from softioc import builder
+
+    m1 = Motor(f"{prefix}:M1")
+    m2 = Motor(f"{prefix}:M2")
+    things = {
+        "detector": make_detector(prefix),
+        "m1": m1,
+        "m2": m2,
+        "trajectory": Trajectory(prefix, {"A": m1, "B": m2}),
+    }
+    if bench_blocks:
+        from .bench import Bench
+
+        things["bench"] = Bench(prefix, bench_blocks)
+    builder.LoadDatabase()
+    return things
+
+
+def run(prefix: str, bench_blocks: int = 0) -> None:
+    """Serve the IOC until stdin closes or the process is signalled."""
+    from softioc import asyncio_dispatcher, softioc
+
+    dispatcher = asyncio_dispatcher.AsyncioDispatcher()
+    things = build(prefix, bench_blocks)
+    softioc.iocInit(dispatcher, enable_pva=False)
+    print(f"{READY}: prefix {prefix}, {len(things)} devices", flush=True)
+    try:
+        sys.stdin.read()  # until stdin closes (the parent went away)
+    except KeyboardInterrupt:
+        pass
+    os._exit(0)  # softioc's threads do not end by themselves

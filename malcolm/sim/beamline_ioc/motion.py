@@ -1,0 +1,204 @@
+"""Simulated motors and a trajectory-scan controller.
+
+A motor ``P:M1`` serves the motor record's fields as PVs ``P:M1:VAL`` (a
+put completes when the move is done), ``:RBV``, ``:VELO``, ``:ACCL``,
+``:DMOV``, ``:STOP`` (a put of 1 stops the move), ``:HLM``, ``:LLM`` (which
+become ``VAL``'s drive limits) and ``:EGU``. A soft IOC cannot make record
+fields, so ``:`` stands where a motor record has ``.``; the
+``motor.MotorRecord`` definition takes the separator as a parameter.
+
+The trajectory controller ``P:TRAJ:`` (after pmac's trajectory scan):
+``PositionsA``/``PositionsB`` (double arrays), ``Times`` (a long array of
+milliseconds per point), ``NumPoints``, ``BuildProfile`` (checks the arrays;
+``BuildStatus_RBV`` says Success or Failure, ``BuildMessage_RBV`` why),
+``ExecuteProfile`` (walks the built points in time, moving the motors of
+axes A and B; a put completes at the end), ``ExecuteStatus_RBV``,
+``ExecuteState_RBV`` (Done/Executing), ``PointsScanned_RBV`` (progress)
+and ``AbortProfile``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+import numpy as np
+from softioc import builder
+
+TICK = 0.01  # seconds between position updates of a move
+
+
+class Motor:
+    """A motor moving at VELO (after ACCL seconds of acceleration)."""
+
+    def __init__(self, name: str, low: float = -100.0, high: float = 100.0) -> None:
+        builder.SetDeviceName(name)
+        self.rbv = builder.aIn("RBV", initial_value=0.0, EGU="mm", PREC=3)
+        self.dmov = builder.longIn("DMOV", initial_value=1)
+        self.velo = builder.aOut(
+            "VELO", initial_value=10.0, EGU="mm/s", PREC=3, DRVL=0.001, DRVH=1000
+        )
+        self.accl = builder.aOut(
+            "ACCL", initial_value=0.1, EGU="s", PREC=3, DRVL=0, DRVH=10
+        )
+        self.val = builder.aOut(
+            "VAL",
+            initial_value=0.0,
+            EGU="mm",
+            PREC=3,
+            DRVL=low,
+            DRVH=high,
+            on_update=self.move,
+            blocking=True,
+            always_update=True,
+        )
+        self.hlm = builder.aOut("HLM", initial_value=high, PREC=3, on_update=self._high)
+        self.llm = builder.aOut("LLM", initial_value=low, PREC=3, on_update=self._low)
+        self.stop = builder.longOut("STOP", initial_value=0, on_update=self._stop)
+        builder.stringIn("EGU", initial_value="mm")
+        self.stopped = False
+
+    def _high(self, value: float) -> None:
+        self.val.set_field("DRVH", repr(float(value)))
+
+    def _low(self, value: float) -> None:
+        self.val.set_field("DRVL", repr(float(value)))
+
+    def _stop(self, value: int) -> None:
+        if value:
+            self.stopped = True
+
+    async def move(self, target: float) -> None:
+        """Move to ``target``; returns when done (or stopped)."""
+        self.stopped = False
+        self.dmov.set(0)
+        try:
+            start = self.rbv.get()
+            velocity = max(self.velo.get(), 1e-6)
+            loop = asyncio.get_running_loop()
+            began = loop.time()
+            duration = abs(target - start) / velocity + (
+                self.accl.get() if target != start else 0.0
+            )
+            while not self.stopped:
+                elapsed = loop.time() - began
+                if elapsed >= duration:
+                    self.rbv.set(target)
+                    break
+                self.rbv.set(start + (target - start) * elapsed / duration)
+                await asyncio.sleep(TICK)
+        finally:
+            self.dmov.set(1)
+
+    def place(self, position: float) -> None:
+        """Show ``position`` (a trajectory moving the motor)."""
+        self.rbv.set(position)
+
+
+class Trajectory:
+    """pmac-like trajectory scan over two axes."""
+
+    MAX_POINTS = 1000
+
+    def __init__(self, prefix: str, axes: dict[str, Motor]) -> None:
+        builder.SetDeviceName(f"{prefix}:TRAJ")
+        self.axes = axes
+        zeros = np.zeros(self.MAX_POINTS)
+        self.positions = {
+            axis: builder.WaveformOut(f"Positions{axis}", zeros, EGU="mm", PREC=3)
+            for axis in axes
+        }
+        self.times = builder.WaveformOut(
+            "Times", np.zeros(self.MAX_POINTS, dtype=np.int32), EGU="ms"
+        )
+        self.num_points = builder.longOut(
+            "NumPoints", initial_value=0, DRVL=0, DRVH=self.MAX_POINTS
+        )
+        statuses = ("Undefined", "Success", "Failure")
+        self.build_status = builder.mbbIn("BuildStatus_RBV", *statuses, initial_value=0)
+        self.build_message = builder.stringIn("BuildMessage_RBV", initial_value="")
+        self.exec_status = builder.mbbIn(
+            "ExecuteStatus_RBV", *statuses, initial_value=0
+        )
+        self.exec_state = builder.mbbIn(
+            "ExecuteState_RBV", "Done", "Executing", initial_value=0
+        )
+        self.scanned = builder.longIn("PointsScanned_RBV", initial_value=0)
+        builder.boolOut(
+            "BuildProfile",
+            ZNAM="Done",
+            ONAM="Build",
+            on_update=self._build,
+            blocking=True,
+            always_update=True,
+        )
+        builder.boolOut(
+            "ExecuteProfile",
+            ZNAM="Done",
+            ONAM="Execute",
+            on_update=self._execute,
+            blocking=True,
+            always_update=True,
+        )
+        builder.boolOut(
+            "AbortProfile",
+            ZNAM="Done",
+            ONAM="Abort",
+            on_update=self._abort,
+            always_update=True,
+        )
+        self.built: tuple[dict[str, np.ndarray], np.ndarray] | None = None
+        self.aborted = False
+
+    def _build(self, value: int) -> None:
+        if not value:
+            return
+        self.build_status.set(0)
+        n = int(self.num_points.get())
+        times = np.asarray(self.times.get())[:n]
+        positions = {a: np.asarray(r.get())[:n] for a, r in self.positions.items()}
+        problem = ""
+        if n < 1:
+            problem = "NumPoints must be at least 1"
+        elif len(times) < n or any(len(p) < n for p in positions.values()):
+            problem = "fewer array values than NumPoints"
+        elif np.any(times <= 0):
+            problem = "every time must be positive"
+        if problem:
+            self.built = None
+            self.build_message.set(problem)
+            self.build_status.set(2)
+            return
+        self.built = (positions, times)
+        self.build_message.set(f"built {n} points")
+        self.build_status.set(1)
+
+    def _abort(self, value: int) -> None:
+        if value:
+            self.aborted = True
+
+    async def _execute(self, value: int) -> None:
+        if not value:
+            return
+        if self.built is None:
+            self.exec_status.set(2)
+            return
+        positions, times = self.built
+        self.aborted = False
+        self.exec_status.set(0)
+        self.exec_state.set(1)
+        self.scanned.set(0)
+        loop = asyncio.get_running_loop()
+        deadline = loop.time()
+        try:
+            for i, ms in enumerate(times):
+                deadline += ms / 1000.0
+                await asyncio.sleep(max(0.0, deadline - loop.time()))
+                if self.aborted:
+                    self.exec_status.set(2)
+                    return
+                for axis, motor in self.axes.items():
+                    motor.place(float(positions[axis][i]))
+                self.scanned.set(i + 1)
+            self.exec_status.set(1)
+        finally:
+            self.exec_state.set(0)

@@ -1,0 +1,93 @@
+"""Channel Access system tests: a simulated beamline IOC in a subprocess.
+
+Run under ``../shared/tools/isolated`` (loopback only): the IOC and the
+client find each other on 127.0.0.1 alone. The CA variables are set here, at
+collection, before pyepics makes its context.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+from collections.abc import Iterator
+from contextlib import asynccontextmanager
+from typing import Any
+
+import pytest
+
+from malcolm.config.build import build_definition
+from malcolm.core import Process
+from malcolm.sim.beamline_ioc import SimIOC, ca_environment
+
+os.environ.update(ca_environment())
+
+PREFIX = "CATEST"
+
+#: block mri -> (definition, values): one of each hardware block
+BLOCKS: dict[str, tuple[str, dict[str, Any]]] = {
+    "DRV": ("ADCore.DetectorDriver", {"prefix": f"{PREFIX}:CAM"}),
+    "POS": ("ADCore.PositionPlugin", {"prefix": PREFIX}),
+    "HDF": ("ADCore.HDFWriter", {"prefix": PREFIX}),
+    "M1": ("motor.MotorRecord", {"prefix": f"{PREFIX}:M1", "sep": ":"}),
+    "M2": ("motor.MotorRecord", {"prefix": f"{PREFIX}:M2", "sep": ":"}),
+    "TRAJ": ("pmac.TrajectoryScan", {"prefix": PREFIX}),
+}
+
+
+@pytest.fixture(scope="session")
+def sim_ioc() -> Iterator[SimIOC]:
+    """The simulated IOC of prefix CATEST, for the whole session."""
+    ioc = SimIOC(PREFIX)
+    ioc.start()
+    yield ioc
+    ioc.stop()
+
+
+@pytest.fixture
+def ioc(sim_ioc: SimIOC) -> SimIOC:
+    """The session's IOC, started again if a test killed it."""
+    if not sim_ioc.alive:
+        sim_ioc.start()
+    return sim_ioc
+
+
+def make_process(*mris: str) -> Process:
+    """A process with the hardware blocks ``mris`` (all if none), on pyepics."""
+    process = Process("ca-test", channels={"ca": "pyepics"})
+    for mri in mris or tuple(BLOCKS):
+        name, values = BLOCKS[mri]
+        build_definition(name, values, mri, process=process)
+    return process
+
+
+@asynccontextmanager
+async def started(*mris: str):
+    process = make_process(*mris)
+    await process.start()
+    try:
+        yield process
+    finally:
+        await process.stop()
+
+
+def follow(process: Process, mri: str, field: str) -> list[Any]:
+    """The values ``mri.field`` takes from now on (by its subscription)."""
+    seen: list[Any] = []
+    process.subscribe([mri, field, "value"], lambda delta: seen.append(delta[-1][1]))
+    return seen
+
+
+def run(coro: Any, timeout: float = 60) -> Any:
+    return asyncio.run(asyncio.wait_for(coro, timeout))
+
+
+async def until(predicate: Any, timeout: float = 10.0, what: str = "") -> float:
+    """Wait until ``predicate()`` is true; seconds it took. Fails the test
+    (naming ``what``) after ``timeout`` seconds."""
+    loop = asyncio.get_running_loop()
+    began = loop.time()
+    while not predicate():
+        if loop.time() - began > timeout:
+            raise AssertionError(f"not within {timeout} s: {what}")
+        await asyncio.sleep(0.01)
+    return loop.time() - began
