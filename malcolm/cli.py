@@ -40,7 +40,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     generator = demo_generator(duration=args.duration) if args.scan else None
     try:
-        return asyncio.run(serve_demo(args.scan, generator=generator, freeze=True))
+        return asyncio.run(
+            serve_demo(
+                args.scan, generator=generator, freeze=True, web_port=args.web_port
+            )
+        )
     except Exception as e:  # no traceback reaches a user
         print(f"malcolm demo: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -109,7 +113,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         sys.stdout.flush()
 
     try:
-        asyncio.run(serve(process, ready, freeze=True))
+        asyncio.run(serve(process, ready, freeze=True, web_port=args.web_port))
     except Exception as e:
         print(f"malcolm serve: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -134,6 +138,8 @@ def _seconds(text: str) -> float:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
+    from malcolm.io.web.cli import add_web_port
+
     parser = argparse.ArgumentParser(
         prog="malcolm", description="Malcolm beamline-control tools."
     )
@@ -170,6 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="seconds per point of the --scan (default 0.05)",
     )
+    add_web_port(demo)
     demo.set_defaults(func=cmd_demo)
 
     graph = commands.add_parser(
@@ -230,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="look for definitions in DIR too (repeatable)",
     )
     serve.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    add_web_port(serve)
     serve.set_defaults(func=cmd_serve)
 
     return parser

@@ -124,11 +124,13 @@ async def serve_demo(
     signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM),
     generator: dict[str, Any] | None = None,
     freeze: bool = False,
+    web_port: int | None = None,
 ) -> int:
     """Serve the demo process until one of ``signals``, or run its scan
     (``generator``, by default :func:`demo_generator`'s grid). ``freeze``
     builds and starts it under :func:`malcolm.core.long_lived` (the command
-    line does: its blocks live until the program ends).
+    line does: its blocks live until the program ends). ``web_port`` (not 0
+    or None) serves it on the web too (docs/web.md).
 
     The exit status: 0 once the scan has Finished (``scan``), or when serving
     is stopped by a signal; ``128 + signal`` (130 for SIGINT, 143 for
@@ -152,9 +154,14 @@ async def serve_demo(
         with long_lived() if freeze else contextlib.nullcontext():
             process = demo_process()
             await process.start()
+        from malcolm.io.web.cli import start_if_asked
+
+        web = await start_if_asked(process, web_port, "malcolm demo", out, err)
         try:
             status = await _demo(process, scan, generator, stop, received, out, err)
         finally:
+            if web is not None:
+                await web.close()
             await process.stop()
     finally:
         for sig in signals:

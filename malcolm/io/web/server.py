@@ -1,0 +1,118 @@
+"""The HTTP + WebSocket server: ``/ws`` (the JSON protocol), ``/rest/`` and
+the web GUI's files at ``/``."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import weakref
+from pathlib import Path
+
+from aiohttp import WSMsgType, web
+
+from malcolm.core import Process
+
+from . import protocol as p
+from .rest import add_rest_routes
+from .session import MAX_QUEUED, Session
+
+log = logging.getLogger(__name__)
+
+#: the web GUI's files (plain HTML, CSS and JavaScript modules)
+STATIC = Path(__file__).resolve().parent / "static"
+
+#: frames above this are refused by aiohttp itself (closing the connection);
+#: below it, messages over protocol.MAX_MESSAGE get an Error
+FRAME_LIMIT = 64 * p.MAX_MESSAGE
+
+
+class WebServer:
+    """A running server; ``url`` is where it listens, ``close()`` stops it."""
+
+    def __init__(self, process: Process) -> None:
+        self.process = process
+        self.app = web.Application(client_max_size=p.MAX_MESSAGE)
+        self.app.router.add_get("/ws", self._websocket)
+        add_rest_routes(self.app, process)
+        self.app.router.add_get("/", self._index)
+        self.app.router.add_static("/static/", STATIC)
+        self.runner = web.AppRunner(self.app, access_log=None)
+        self.sessions: weakref.WeakSet[Session] = weakref.WeakSet()
+        self.host = ""
+        self.port = 0
+
+    @property
+    def url(self) -> str:
+        host = "localhost" if self.host in ("", "0.0.0.0", "::") else self.host
+        return f"http://{host}:{self.port}/"
+
+    async def start(self, port: int, host: str) -> None:
+        await self.runner.setup()
+        site = web.TCPSite(self.runner, host, port, shutdown_timeout=1.0)
+        await site.start()
+        server = site._server  # aiohttp offers no public way to the bound port
+        sockets = getattr(server, "sockets", None) or []
+        self.host = host
+        self.port = sockets[0].getsockname()[1] if sockets else port
+
+    async def close(self) -> None:
+        """Stop listening, end every session and its subscriptions."""
+        for session in list(self.sessions):
+            for task in list(session.tasks):
+                task.cancel()
+        await self.runner.cleanup()
+
+    async def _index(self, request: web.Request) -> web.StreamResponse:
+        return web.FileResponse(STATIC / "index.html")
+
+    async def _websocket(self, request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse(max_msg_size=FRAME_LIMIT, heartbeat=30)
+        await ws.prepare(request)
+        queue: asyncio.Queue[str | None] = asyncio.Queue()
+
+        def send(text: str) -> None:
+            if queue.qsize() >= MAX_QUEUED:
+                log.warning("web client %s is not reading: dropped", request.remote)
+                queue.put_nowait(None)
+                session.closed = True
+                return
+            queue.put_nowait(text)
+
+        session = Session(self.process, send)
+        self.sessions.add(session)
+        writer = asyncio.ensure_future(self._write(ws, queue))
+        try:
+            async for msg in ws:
+                if msg.type in (WSMsgType.TEXT, WSMsgType.BINARY):
+                    session.handle(msg.data)
+                if session.closed:
+                    break
+        finally:
+            await session.close()
+            queue.put_nowait(None)
+            await writer
+            if not ws.closed:
+                await ws.close()
+        return ws
+
+    @staticmethod
+    async def _write(ws: web.WebSocketResponse, queue: asyncio.Queue) -> None:
+        while True:
+            text = await queue.get()
+            if text is None:
+                return
+            try:
+                await ws.send_str(text)
+            except (ConnectionError, RuntimeError):
+                return  # the client went; its reader ends the session
+
+
+async def start_web_server(
+    process: Process, port: int = 8008, host: str = "0.0.0.0"
+) -> WebServer:
+    """Serve ``process`` over HTTP and WebSocket on ``host:port`` (0: any free
+    port); returns the server (``url``, ``async close()``)."""
+    server = WebServer(process)
+    await server.start(port, host)
+    log.info("web server at %s", server.url)
+    return server
