@@ -36,7 +36,7 @@ class WebServer:
         add_rest_routes(self.app, process)
         self.app.router.add_get("/", self._index)
         self.app.router.add_static("/static/", STATIC)
-        self.runner = web.AppRunner(self.app, access_log=None)
+        self.runner = web.AppRunner(self.app, access_log=None, shutdown_timeout=1.0)
         self.sessions: weakref.WeakSet[Session] = weakref.WeakSet()
         self.host = ""
         self.port = 0
@@ -48,7 +48,7 @@ class WebServer:
 
     async def start(self, port: int, host: str) -> None:
         await self.runner.setup()
-        site = web.TCPSite(self.runner, host, port, shutdown_timeout=1.0)
+        site = web.TCPSite(self.runner, host, port)
         await site.start()
         server = site._server  # aiohttp offers no public way to the bound port
         sockets = getattr(server, "sockets", None) or []
