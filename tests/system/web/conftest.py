@@ -8,8 +8,11 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
+import shutil
 import threading
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import aiohttp
@@ -145,3 +148,53 @@ async def connect(session: aiohttp.ClientSession, served: Served) -> Client:
 def run(coro, timeout: float = 60) -> Any:
     """Run a test's client coroutine on a loop of its own."""
     return asyncio.run(asyncio.wait_for(coro, timeout))
+
+
+# ---- the browser: Debian's chromium driven by playwright
+CHROMIUM = "/usr/bin/chromium"
+
+
+@pytest.fixture(scope="session")
+def browser():
+    if not os.path.exists(CHROMIUM):
+        pytest.skip(f"{CHROMIUM} is not installed (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+class Shots:
+    """Saves screenshots to a temp dir, and to $MALCOLM_WEB_SHOTS if set."""
+
+    def __init__(self, where: Path) -> None:
+        self.where = where
+        self.also = os.environ.get("MALCOLM_WEB_SHOTS")
+
+    def __call__(self, page, name: str) -> Path:
+        path = self.where / f"{name}.png"
+        page.screenshot(path=str(path), full_page=True)
+        assert path.stat().st_size > 1000
+        if self.also:
+            shutil.copy(path, Path(self.also) / path.name)
+        return path
+
+
+@pytest.fixture
+def page(browser, served, tmp_path):
+    """A page of the GUI on the served demo; errors in the page fail the test."""
+    context = browser.new_context(viewport={"width": 1400, "height": 1000})
+    pg = context.new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.shots = Shots(tmp_path)
+    pg.served = served
+    try:
+        yield pg
+    finally:
+        context.close()
+    assert not errors, f"the page raised: {errors}"

@@ -5,7 +5,7 @@
 import { Palette } from "./canvas.js";
 import { Client } from "./client.js";
 import { allows, drawModel } from "./fsm.js";
-import { attributeRow, h, methodForm } from "./widgets.js";
+import { attributeRow, h, methodForm, methodKey } from "./widgets.js";
 
 const wsUrl = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`;
 const client = new Client(wsUrl);
@@ -67,9 +67,9 @@ class BlockView {
   }
 
   build(data) {
-    this.views.clear();
-    this.palette?.close();
-    this.palette = null;
+    // views of fields that are still there are kept (with their results)
+    const before = this.views;
+    this.views = new Map();
     const fields = data.meta?.fields || [];
     this.header = h("div", { class: "header" }, h("h2", {}, this.mri),
       h("span", { class: "badge", "data-block-state": "" }), h("span", { class: "health" }));
@@ -83,18 +83,22 @@ class BlockView {
     const methods = h("section", { class: "methods" }, h("h3", {}, "Methods"));
     for (const name of fields) {
       const d = data[name];
+      const old = before.get(name);
       if (isAttribute(d)) {
-        const view = attributeRow(client, this.mri, name, d);
+        const view = old?.update ? old : attributeRow(client, this.mri, name, d);
         this.views.set(name, view);
         attrs.append(view.el);
       } else if (isMethod(d)) {
-        const view = methodForm(client, this.mri, name, d);
+        const view = old?.key === methodKey(d) ? old : methodForm(client, this.mri, name, d);
         this.views.set(name, view);
         methods.append(view.el);
       }
     }
     if ("layout" in data && "exports" in data) {
-      this.palette = new Palette(client, this.mri, (m) => { this.message.textContent = m; });
+      this.palette ||= new Palette(client, this.mri, (m) => { this.message.textContent = m; });
+    } else {
+      this.palette?.close();
+      this.palette = null;
     }
     this.el.replaceChildren(
       this.header,

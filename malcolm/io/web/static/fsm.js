@@ -79,6 +79,8 @@ export function drawModel(model) {
     if (state === current) return;
     current = state;
     for (const g of svg.querySelectorAll(".state")) g.classList.toggle("current", g.dataset.state === state);
+    // the moves possible from here stand out
+    for (const p of svg.querySelectorAll("[data-edge]")) p.classList.toggle("out", p.dataset.edge.startsWith(`${state}>`));
     svg.dataset.trail = svg.dataset.trail ? `${svg.dataset.trail},${state}` : state;
     svg.dataset.current = state;
   };

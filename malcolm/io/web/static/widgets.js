@@ -167,6 +167,9 @@ export function attributeRow(client, mri, name, data) {
   return { el: row, update };
 }
 
+// What a method's form is built from: a form is rebuilt when it changes.
+export const methodKey = (data) => JSON.stringify([data.meta?.takes, data.meta?.defaults]);
+
 // One method's form: an input per `takes` element with its default, a button.
 export function methodForm(client, mri, name, data) {
   const meta = data.meta || {};
@@ -209,6 +212,7 @@ export function methodForm(client, mri, name, data) {
     h("div", { class: "args" }, button, fields), result);
   return {
     el,
+    key: methodKey(data),
     enable: (allowed) => { button.disabled = !allowed; el.classList.toggle("disallowed", !allowed); },
   };
 }

@@ -1,0 +1,153 @@
+"""The web GUI in headless Chromium against the served demo."""
+
+from __future__ import annotations
+
+import json
+import re
+
+from playwright.sync_api import expect
+
+from malcolm.demo import demo_generator
+
+
+def open_block(page, mri: str) -> None:
+    page.goto(f"{page.served.url}#/block/{mri}")
+    expect(page.locator(f'[data-view="{mri}"] .badge')).to_have_text("Ready")
+
+
+def test_block_list_and_a_put_both_ways(page):
+    page.goto(page.served.url)
+    for mri in ("HELLO", "COUNTER", "MOTOR:X", "SCAN"):
+        expect(page.locator(f'#blocks li[data-mri="{mri}"] .state')).to_have_text(
+            "Ready"
+        )
+    open_block(page, "COUNTER")
+    counter = page.locator('[data-attr="counter"] input')
+    counter.fill("5")
+    counter.press("Enter")
+    served = page.served
+    expect(counter).to_have_value("5")
+    _until(lambda: served.get(["COUNTER", "counter", "value"]) == 5)
+    # a change made by someone else shows at once
+    served.call(lambda: served.process.put(["COUNTER", "counter"], 42))
+    expect(counter).to_have_value("42")
+    # a refused put shows the error and changes nothing
+    page.evaluate(
+        "() => { const i = document.querySelector('[data-attr=delta] input');"
+        " i.type = 'text'; i.value = 'lots'; i.dispatchEvent(new Event('change')); }"
+    )
+    expect(page.locator('[data-attr="delta"] .status')).to_contain_text("Error")
+    assert served.get(["COUNTER", "delta", "value"]) == 1
+    page.shots(page, "counter")
+
+
+def test_method_result_and_error_are_shown(page):
+    open_block(page, "HELLO")
+    page.locator('[data-name="greet.name"]').fill("browser")
+    page.locator('button[data-method="greet"]').click()
+    expect(page.locator('[data-result="greet"]')).to_contain_text("Hello browser")
+    page.locator('button[data-method="error"]').click()
+    expect(page.locator('[data-result="error"]')).to_have_class(re.compile("error"))
+    expect(page.locator('[data-result="error"]')).to_contain_text("Error")
+    page.shots(page, "hello")
+
+
+def test_scan_moves_the_progress_bar_and_the_state_diagram(page):
+    open_block(page, "SCAN")
+    run = page.locator('button[data-method="run"]')
+    configure = page.locator('button[data-method="configure"]')
+    expect(run).to_be_disabled()  # the model allows run in Armed only
+    expect(configure).to_be_enabled()
+    svg = page.locator("svg.fsm")
+    expect(svg.locator('.state.current[data-state="Ready"]')).to_have_count(1)
+    generator = demo_generator(ny=3, nx=4, duration=0.15)
+    page.locator('[data-name="configure.generator"]').fill(json.dumps(generator))
+    configure.click()
+    expect(page.locator('[data-result="configure"]')).to_have_text("done")
+    expect(svg).to_have_attribute("data-current", "Armed")
+    expect(run).to_be_enabled()
+    expect(configure).to_be_disabled()
+    page.shots(page, "scan-armed")
+    run.click()
+    expect(svg).to_have_attribute("data-current", "Running")
+    bar = page.locator('progress[data-progress="SCAN"]')
+    expect(bar).not_to_have_attribute("data-done", "0")
+    page.shots(page, "scan-running")
+    expect(svg).to_have_attribute("data-current", "Finished", timeout=20000)
+    expect(bar).to_have_attribute("data-done", "12")
+    expect(bar).to_have_attribute("data-total", "12")
+    trail = svg.get_attribute("data-trail").split(",")
+    wanted = ["Ready", "Configuring", "Armed", "Running", "Finished"]
+    assert [s for s in trail if s in wanted] == wanted, trail
+    expect(run).to_be_disabled()
+    page.shots(page, "scan-finished")
+
+
+def _drag(page, locator, dx: float, dy: float) -> None:
+    box = locator.bounding_box()
+    x, y = box["x"] + 20, box["y"] + 10
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + dx / 2, y + dy / 2, steps=4)
+    page.mouse.move(x + dx, y + dy, steps=4)
+    page.mouse.up()
+
+
+def _layout(served) -> dict[str, tuple[float, float, bool]]:
+    t = served.get(["SCAN", "layout", "value"])
+    return {n: (x, y, v) for n, x, y, v in zip(t["name"], t["x"], t["y"], t["visible"])}
+
+
+def _until(check, timeout: float = 10) -> None:
+    import time
+
+    end = time.monotonic() + timeout
+    while not check():
+        assert time.monotonic() < end, "not reached in time"
+        time.sleep(0.05)
+
+
+def test_drag_a_child_and_the_layout_table_changes(page):
+    served = page.served
+    open_block(page, "SCAN")
+    palette = page.locator('[data-palette="SCAN"]')
+    # all four start at (0, 0): the top one is the last drawn
+    for name, (dx, dy) in [("y", (390, 150)), ("x", (260, 150)), ("DET2", (130, 0))]:
+        _drag(page, palette.locator(f'[data-child="{name}"]'), dx, dy)
+        _until(lambda n=name, d=(dx, dy): _layout(served)[n][:2] == d)
+    expect(page.locator('[data-name="layout.2.x"]')).to_have_value("260")
+    expect(page.locator('[data-name="layout.2.y"]')).to_have_value("150")
+    expect(page.locator('[data-attr="modified"] .led')).to_have_class(re.compile("on"))
+    assert served.get(["SCAN", "state", "value"]) == "Ready"
+    page.shots(page, "palette")
+    # hiding a child calls set_visible: its box goes
+    page.locator('input[data-visible="DET2"]').uncheck()
+    _until(lambda: _layout(served)["DET2"][2] is False)
+    expect(palette.locator('[data-child="DET2"]')).to_have_count(0)
+
+
+def test_save_a_design_and_load_it_back(page):
+    served = page.served
+    open_block(page, "SCAN")
+    palette = page.locator('[data-palette="SCAN"]')
+    _drag(page, palette.locator('[data-child="y"]'), 200, 100)
+    _until(lambda: _layout(served)["y"][:2] == (200, 100))
+    page.locator('[data-name="save.design"]').fill("browser")
+    page.locator('button[data-method="save"]').click()
+    expect(page.locator('[data-result="save"]')).to_have_text("done")
+    expect(page.locator('[data-attr="design"] select')).to_have_value("browser")
+    expect(page.locator('[data-attr="modified"] .led')).not_to_have_class(
+        re.compile("on")
+    )
+    _drag(page, palette.locator('[data-child="y"]'), 100, -50)
+    _until(lambda: _layout(served)["y"][:2] == (300, 50))
+    expect(page.locator('[data-attr="modified"] .led')).to_have_class(re.compile("on"))
+    page.locator('[data-name="load.design"]').fill("browser")
+    page.locator('button[data-method="load"]').click()
+    expect(page.locator('[data-result="load"]')).to_have_text("done")
+    _until(lambda: _layout(served)["y"][:2] == (200, 100))
+    expect(palette.locator('[data-child="y"]')).to_have_css("left", "220px")
+    expect(page.locator('[data-attr="modified"] .led')).not_to_have_class(
+        re.compile("on")
+    )
+    page.shots(page, "design-loaded")
