@@ -154,8 +154,10 @@ def run(coro, timeout: float = 60) -> Any:
 CHROMIUM = "/usr/bin/chromium"
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser():
+    """Chromium, for one module's tests (playwright's sync API keeps an asyncio
+    loop running in this thread while it is open)."""
     if not os.path.exists(CHROMIUM):
         pytest.skip(f"{CHROMIUM} is not installed (apt-get install chromium)")
     from playwright.sync_api import sync_playwright
