@@ -93,8 +93,8 @@ def _drag(page, locator, dx: float, dy: float) -> None:
     page.mouse.up()
 
 
-def _layout(served) -> dict[str, tuple[float, float, bool]]:
-    t = served.get(["SCAN", "layout", "value"])
+def _layout(served, mri: str = "SCAN") -> dict[str, tuple[float, float, bool]]:
+    t = served.get([mri, "layout", "value"])
     return {n: (x, y, v) for n, x, y, v in zip(t["name"], t["x"], t["y"], t["visible"])}
 
 
@@ -151,3 +151,38 @@ def test_save_a_design_and_load_it_back(page):
         re.compile("on")
     )
     page.shots(page, "design-loaded")
+
+
+def test_wiring_between_children_is_drawn_as_arrows(browser, tmp_path):
+    from .conftest import Served, Shots
+    from .wired import wired_process
+
+    served = Served(wired_process)
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    try:
+        pg = context.new_page()
+        pg.served = served
+        open_block(pg, "BOX")
+        palette = pg.locator('[data-palette="BOX"]')
+        for name, (dx, dy) in [("PCAP", (330, 120)), ("PULSE", (200, 60))]:
+            _drag(pg, palette.locator(f'[data-child="{name}"]'), dx, dy)
+            _until(lambda n=name, d=(dx, dy): _layout(served, "BOX")[n][:2] == d)
+        wires = palette.locator("path[data-wire]")
+        expect(wires).to_have_count(0)  # every input is ZERO
+        served.call(lambda: served.process.put(["BOX:PCAP", "INP"], "PULSE.OUT"))
+        served.call(lambda: served.process.put(["BOX:PULSE", "INP"], "GATE.OUT"))
+        expect(wires).to_have_count(2)
+        expect(palette.locator('path[data-wire="PULSE.OUT → PCAP.INP"]')).to_have_count(
+            1
+        )
+        expect(palette.locator('path[data-wire="GATE.OUT → PULSE.INP"]')).to_have_count(
+            1
+        )
+        Shots(tmp_path)(pg, "wiring")
+        # a hidden child's wires go with it
+        pg.locator('input[data-visible="GATE"]').uncheck()
+        _until(lambda: _layout(served, "BOX")["GATE"][2] is False)
+        expect(wires).to_have_count(1)
+    finally:
+        context.close()
+        served.close()
