@@ -38,6 +38,14 @@ def test_block_list_and_a_put_both_ways(page):
     )
     expect(page.locator('[data-attr="delta"] .status')).to_contain_text("Error")
     assert served.get(["COUNTER", "delta", "value"]) == 1
+    # an alarm shows next to its attribute
+    from malcolm.core import Alarm
+
+    block = served.call(lambda: served.process.get_block("COUNTER"))
+    served.call(lambda: block.counter.set_value(7, alarm=Alarm.minor("rather high")))
+    row = page.locator('[data-attr="counter"]')
+    expect(row).to_have_attribute("data-severity", "minor")
+    expect(row.locator(".alarm")).to_have_text("rather high")
     page.shots(page, "counter")
 
 
@@ -186,3 +194,28 @@ def test_wiring_between_children_is_drawn_as_arrows(browser, tmp_path):
     finally:
         context.close()
         served.close()
+
+
+def test_the_exports_table_is_edited_in_place(page):
+    served = page.served
+    open_block(page, "SCAN")
+    exports = page.locator('[data-attr="exports"]')
+    exports.get_by_role("button", name="+ row").click()
+    exports.locator('[data-name="exports.0.name"]').fill("frames")
+    exports.locator('[data-name="exports.0.source"]').fill("DET1.framesTaken")
+    exports.locator('[data-name="exports.0.description"]').fill("DET1's frames")
+    exports.locator('[data-name="exports.put"]').click()
+    _until(lambda: served.get(["SCAN", "exports", "value"])["name"] == ["frames"])
+    # the manager takes its new parts through Disabled: reset brings it back
+    expect(page.locator('button[data-method="reset"]')).to_be_enabled()
+    page.locator('button[data-method="reset"]').click()
+    expect(page.locator('[data-view="SCAN"] .badge')).to_have_text("Ready")
+    expect(page.locator('[data-attr="frames"]')).to_have_count(1)
+    assert "frames" in served.get(["SCAN", "meta", "fields"])
+    # a bad row is refused with the reason, and the table is as it was
+    exports.get_by_role("button", name="+ row").click()
+    exports.locator('[data-name="exports.1.name"]').fill("nope")
+    exports.locator('[data-name="exports.1.source"]').fill("NOPE.x")
+    exports.locator('[data-name="exports.put"]').click()
+    expect(exports.locator(".status")).to_contain_text("NOPE")
+    assert served.get(["SCAN", "exports", "value"])["name"] == ["frames"]

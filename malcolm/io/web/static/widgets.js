@@ -88,6 +88,8 @@ export function editor(meta, commit, name) {
 function tableEditor(meta, commit, name) {
   const columns = Object.keys(meta.elements || {});
   const writeable = meta.writeable !== false;
+  // columns say which of them may be edited only if some of them may
+  const perColumn = columns.some((c) => meta.elements[c].writeable);
   const body = h("tbody");
   let rows = [];
   const draw = () => {
@@ -97,7 +99,7 @@ function tableEditor(meta, commit, name) {
         const cellMeta = {
           ...column,
           typeid: (column.typeid || "").replace("ArrayMeta", "Meta"),
-          writeable: writeable && column.writeable !== false,
+          writeable: writeable && (!perColumn || column.writeable !== false),
         };
         const cell = editor(cellMeta, null, `${name}.${r}.${c}`);
         cell.set(row[c]);
