@@ -18,6 +18,12 @@ log = logging.getLogger(__name__)
 MAX_QUEUED = 100_000
 
 
+def _retrieve(task: asyncio.Future[Any]) -> None:
+    """Read a finished operation's outcome (whether or not anyone waits)."""
+    if not task.cancelled():
+        task.exception()
+
+
 class Session:
     """Answers one connection's messages; ``send(text)`` queues a reply.
 
@@ -63,13 +69,17 @@ class Session:
         return self.process.get(path)
 
     async def _write(self, request: p.Request) -> None:
+        if request.typeid == p.PUT:
+            operation = self.process.put(request.path, request.value)
+        else:
+            operation = self.process.post(request.path, request.parameters)
+        # the operation is the process's: a client that goes (or a server
+        # that closes) stops waiting for it, never the operation itself
+        inner = asyncio.ensure_future(operation)
+        inner.add_done_callback(_retrieve)
         try:
-            if request.typeid == p.PUT:
-                await self.process.put(request.path, request.value)
-                value = None
-            else:
-                value = await self.process.post(request.path, request.parameters)
-            reply = p.return_(request.id, value)
+            value = await asyncio.shield(inner)
+            reply = p.return_(request.id, value if request.typeid == p.POST else None)
         except asyncio.CancelledError:
             raise
         except MalcolmError as e:

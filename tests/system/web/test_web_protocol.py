@@ -302,3 +302,25 @@ def test_malformed_input_is_answered_with_error_and_changes_nothing(served):
             assert c.inbox == []
 
     run(body())
+
+
+def test_a_client_that_goes_mid_run_does_not_stop_the_scan(served):
+    async def body():
+        async with aiohttp.ClientSession() as s:
+            c = await connect(s, served)
+            params = {"generator": demo_generator(ny=2, nx=3, duration=0.05)}
+            await c.value(POST, path=["SCAN", "configure"], parameters=params)
+            await c.send({"typeid": POST, "id": 50, "path": ["SCAN", "run"]})
+            other = await connect(s, served)
+            await other.send(
+                {"typeid": SUBSCRIBE, "id": 1, "path": ["SCAN", "state", "value"]}
+            )
+            assert (await other.wait_for(1, (UPDATE,)))["value"] in ("Armed", "Running")
+            await c.ws.close()  # gone mid-run
+            state = None
+            while state != "Finished":
+                state = (await other.wait_for(1, (UPDATE,)))["value"]
+                assert state in ("Running", "PostRun", "Finished"), state
+            assert served.get(["SCAN", "completedSteps", "value"]) == 6
+
+    run(body())
