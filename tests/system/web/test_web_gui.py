@@ -92,6 +92,7 @@ def test_scan_moves_the_progress_bar_and_the_state_diagram(page):
 
 
 def _drag(page, locator, dx: float, dy: float) -> None:
+    locator.wait_for()
     box = locator.bounding_box()
     x, y = box["x"] + 20, box["y"] + 10
     page.mouse.move(x, y)
@@ -219,3 +220,26 @@ def test_the_exports_table_is_edited_in_place(page):
     exports.locator('[data-name="exports.put"]').click()
     expect(exports.locator(".status")).to_contain_text("NOPE")
     assert served.get(["SCAN", "exports", "value"])["name"] == ["frames"]
+
+
+def test_the_gui_connects_again_when_the_server_is_back(page):
+    from malcolm.io.web import start_web_server
+
+    served = page.served
+    open_block(page, "COUNTER")
+    counter = page.locator('[data-attr="counter"] input')
+    connection = page.locator("#connection")
+    expect(connection).to_have_text("connected")
+    port = served.server.port
+    served.call(served.server.close)
+    expect(connection).to_have_text("disconnected")
+    served.call(lambda: served.process.put(["COUNTER", "counter"], 8))
+    served.server = served.call(
+        lambda: start_web_server(served.process, port, "127.0.0.1")
+    )
+    expect(connection).to_have_text("connected", timeout=10000)
+    expect(counter).to_have_value("8")  # the subscription was made again
+    served.call(lambda: served.process.put(["COUNTER", "counter"], 9))
+    expect(counter).to_have_value("9")
+    page.locator('button[data-method="increment"]').click()
+    expect(counter).to_have_value("10")

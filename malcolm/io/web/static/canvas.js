@@ -41,7 +41,17 @@ export class Palette {
       name, mri: layout.mri[i], x: layout.x[i], y: layout.y[i], visible: layout.visible[i],
     }));
     this.rows = rows;
-    this.boxes.replaceChildren(...rows.filter((r) => r.visible).map((r) => this.box(r)));
+    // boxes are kept (a drag in progress goes on), moved to where they are
+    const boxes = new Map([...this.boxes.children].map((el) => [el.dataset.child, el]));
+    this.boxes.replaceChildren(...rows.filter((r) => r.visible).map((r) => {
+      const el = boxes.get(r.name) || this.box(r);
+      if (!el.dragging) {
+        el.row = r;
+        el.style.left = `${ORIGIN + r.x}px`;
+        el.style.top = `${ORIGIN + r.y}px`;
+      }
+      return el;
+    }));
     this.toggles.replaceChildren(...rows.map((r) => h("label", { class: "toggle" },
       h("input", { type: "checkbox", "data-visible": r.name, checked: r.visible, onchange: (e) => this.call("set_visible", { block_name: r.name, visible: e.target.checked }) }),
       r.name)));
@@ -56,11 +66,12 @@ export class Palette {
   }
 
   box(r) {
-    const el = h("div", { class: "child", "data-child": r.name, style: `left:${ORIGIN + r.x}px;top:${ORIGIN + r.y}px` },
-      h("b", {}, r.name), h("small", {}, r.mri));
+    const el = h("div", { class: "child", "data-child": r.name }, h("b", {}, r.name), h("small", {}, r.mri));
     el.addEventListener("pointerdown", (down) => {
       down.preventDefault();
       el.setPointerCapture(down.pointerId);
+      const r = el.row;
+      el.dragging = true;
       const start = [down.clientX, down.clientY];
       const from = [r.x, r.y];
       let at = from;
@@ -72,6 +83,7 @@ export class Palette {
         this.wire();
       };
       const up = () => {
+        el.dragging = false;
         el.removeEventListener("pointermove", move);
         el.removeEventListener("pointerup", up);
         if (at !== from) this.call("set_position", { block_name: r.name, x: Math.round(at[0]), y: Math.round(at[1]) });
