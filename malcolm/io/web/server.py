@@ -8,13 +8,14 @@ import logging
 import weakref
 from pathlib import Path
 
-from aiohttp import WSMsgType, web
+from aiohttp import WSCloseCode, WSMsgType, web
 
 from malcolm.core import Process
 
 from . import protocol as p
+from . import session as session_module
 from .rest import add_rest_routes
-from .session import MAX_QUEUED, Session
+from .session import Session
 
 log = logging.getLogger(__name__)
 
@@ -71,10 +72,20 @@ class WebServer:
         queue: asyncio.Queue[str | None] = asyncio.Queue()
 
         def send(text: str) -> None:
-            if queue.qsize() >= MAX_QUEUED:
+            if session.closed:
+                return
+            if queue.qsize() >= session_module.MAX_QUEUED:
+                # a client that does not read is dropped, not buffered forever
                 log.warning("web client %s is not reading: dropped", request.remote)
-                queue.put_nowait(None)
                 session.closed = True
+                while not queue.empty():
+                    queue.get_nowait()
+                queue.put_nowait(None)
+                closing = asyncio.ensure_future(
+                    ws.close(code=WSCloseCode.POLICY_VIOLATION, message=b"not reading")
+                )
+                session.tasks.add(closing)
+                closing.add_done_callback(session.tasks.discard)
                 return
             queue.put_nowait(text)
 

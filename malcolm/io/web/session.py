@@ -15,7 +15,7 @@ from .directory import directory_get
 log = logging.getLogger(__name__)
 
 #: messages queued for one client before it counts as stuck and is dropped
-MAX_QUEUED = 100_000
+MAX_QUEUED = 20_000
 
 
 def _retrieve(task: asyncio.Future[Any]) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 
 import aiohttp
@@ -322,5 +323,41 @@ def test_a_client_that_goes_mid_run_does_not_stop_the_scan(served):
                 state = (await other.wait_for(1, (UPDATE,)))["value"]
                 assert state in ("Running", "PostRun", "Finished"), state
             assert served.get(["SCAN", "completedSteps", "value"]) == 6
+
+    run(body())
+
+
+def test_a_client_that_does_not_read_is_dropped_and_others_go_on(served, monkeypatch):
+    from malcolm.io.web import session
+
+    monkeypatch.setattr(session, "MAX_QUEUED", 20)
+
+    async def body():
+        async with aiohttp.ClientSession() as s:
+            stuck = await connect(s, served)
+            fine = await connect(s, served)
+            for i in range(10):  # some 30 kB per put that it never reads
+                await stuck.send(
+                    {"typeid": SUBSCRIBE, "id": i, "path": ["COUNTER"], "delta": False}
+                )
+            await fine.send(
+                {"typeid": SUBSCRIBE, "id": 1, "path": ["COUNTER", "counter", "value"]}
+            )
+            await fine.wait_for(1, (UPDATE,))
+
+            async def many_puts():
+                for i in range(3000):
+                    await served.process.put(["COUNTER", "counter"], i)
+                    await asyncio.sleep(0)  # as puts from clients arrive
+
+            served.call(many_puts, timeout=120)
+            assert (await fine.value(GET, path=["COUNTER", "counter", "value"])) == 2999
+            # the stuck client is closed by the server once it reads again
+            while True:
+                msg = await stuck.ws.receive(20)
+                if msg.type != aiohttp.WSMsgType.TEXT:
+                    break
+            assert msg.type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED)
+            assert stuck.ws.close_code == 1008
 
     run(body())
