@@ -46,6 +46,14 @@ def test_block_list_and_a_put_both_ways(page):
     row = page.locator('[data-attr="counter"]')
     expect(row).to_have_attribute("data-severity", "minor")
     expect(row.locator(".alarm")).to_have_text("rather high")
+    # the block list shows health as it changes
+    health = page.locator('#blocks li[data-mri="HELLO"]')
+    hello = served.call(lambda: served.process.get_block("HELLO"))
+    served.call(lambda: hello.health.set_value("greeter: hoarse"))
+    expect(health.locator(".health")).to_have_text("greeter: hoarse")
+    expect(health).to_have_class(re.compile("unhealthy"))
+    served.call(lambda: hello.health.set_value("OK"))
+    expect(health).not_to_have_class(re.compile("unhealthy"))
     page.shots(page, "counter")
 
 

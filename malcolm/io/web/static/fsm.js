@@ -47,6 +47,14 @@ export function drawModel(model) {
   svg.append(defs);
   const edges = s("g", { class: "edges" });
   const seen = new Map();
+  // a state most states can move to (Fault, Disabling) is a "common" target:
+  // its arrows are drawn faint, unless they leave the current state
+  const sources = new Map();
+  for (const t of model.transitions) {
+    if (!sources.has(t.dest)) sources.set(t.dest, new Set());
+    sources.get(t.dest).add(t.source);
+  }
+  const common = (dest) => (sources.get(dest)?.size || 0) >= model.states.length / 2;
   for (const t of model.transitions) {
     const key = `${t.source}>${t.dest}`;
     if (seen.has(key)) { seen.get(key).push(t.label); continue; }
@@ -62,7 +70,10 @@ export function drawModel(model) {
     const scale = Math.min(Math.abs((W / 2 + 2) / (dx || 1e-9)), Math.abs((H / 2 + 2) / (dy || 1e-9)));
     const end = [b[0] - dx * scale, b[1] - dy * scale];
     const mid = [(a[0] + end[0]) / 2 - dy * 0.08, (a[1] + end[1]) / 2 + dx * 0.08];
-    edges.append(s("path", { d: `M ${a[0]} ${a[1]} Q ${mid[0]} ${mid[1]} ${end[0]} ${end[1]}`, "data-edge": key, "marker-end": "url(#arrow)" }));
+    edges.append(s("path", {
+      d: `M ${a[0]} ${a[1]} Q ${mid[0]} ${mid[1]} ${end[0]} ${end[1]}`,
+      "data-edge": key, "marker-end": "url(#arrow)", class: common(t.dest) ? "common" : "",
+    }));
   }
   for (const [key, labels] of seen) edges.querySelector(`[data-edge="${CSS.escape(key)}"]`)?.append(s("title", {}, labels.join("\n")));
   svg.append(edges);
