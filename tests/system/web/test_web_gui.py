@@ -129,11 +129,11 @@ def test_drag_a_child_and_the_layout_table_changes(page):
     open_block(page, "SCAN")
     palette = page.locator('[data-palette="SCAN"]')
     # all four start at (0, 0): the top one is the last drawn
-    for name, (dx, dy) in [("y", (390, 150)), ("x", (260, 150)), ("DET2", (130, 0))]:
+    for name, (dx, dy) in [("y", (270, 130)), ("x", (140, 130)), ("DET2", (140, 0))]:
         _drag(page, palette.locator(f'[data-child="{name}"]'), dx, dy)
         _until(lambda n=name, d=(dx, dy): _layout(served)[n][:2] == d)
-    expect(page.locator('[data-name="layout.2.x"]')).to_have_value("260")
-    expect(page.locator('[data-name="layout.2.y"]')).to_have_value("150")
+    expect(page.locator('[data-name="layout.2.x"]')).to_have_value("140")
+    expect(page.locator('[data-name="layout.2.y"]')).to_have_value("130")
     expect(page.locator('[data-attr="modified"] .led')).to_have_class(re.compile("on"))
     assert served.get(["SCAN", "state", "value"]) == "Ready"
     page.shots(page, "palette")
