@@ -7,6 +7,7 @@ import signal
 import socket
 import subprocess
 import sys
+from pathlib import Path
 
 import aiohttp
 import pytest
@@ -71,31 +72,70 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_malcolm_demo_serves_the_web_and_prints_its_address():
-    port = _free_port()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "malcolm", "demo", "--web-port", str(port)],
+def _start(*argv: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "malcolm", *argv],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
+
+
+def _stop(proc: subprocess.Popen) -> str:
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err
+    return err
+
+
+def _rest_and_gui(port: int) -> None:
+    async def body():
+        async with aiohttp.ClientSession() as s:
+            async with s.get(f"http://127.0.0.1:{port}/rest/HELLO/state/value") as r:
+                assert await r.json() == "Ready"
+            async with s.get(f"http://127.0.0.1:{port}/") as r:
+                assert r.status == 200 and "<html" in (await r.text()).lower()
+
+    run(body())
+
+
+def test_malcolm_demo_serves_the_web_and_prints_its_address():
+    port = _free_port()
+    proc = _start("demo", "--web-port", str(port))
     try:
         line = proc.stdout.readline()
         assert line.startswith(f"malcolm demo: web GUI at http://localhost:{port}/")
-
-        async def body():
-            async with aiohttp.ClientSession() as s:
-                async with s.get(
-                    f"http://127.0.0.1:{port}/rest/HELLO/state/value"
-                ) as r:
-                    assert await r.json() == "Ready"
-                async with s.get(f"http://127.0.0.1:{port}/") as r:
-                    assert r.status == 200 and "<html" in (await r.text()).lower()
-
-        run(body())
+        _rest_and_gui(port)
     finally:
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=30)
-    assert proc.returncode == 0, err
-    assert "Traceback" not in err
+        _stop(proc)
+
+
+def test_malcolm_serve_serves_the_web_too(tmp_path):
+    port = _free_port()
+    process_file = (
+        Path(__file__).resolve().parents[3] / "malcolm/blocks/demo/process.yaml"
+    )
+    proc = _start("serve", str(process_file), "--web-port", str(port))
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith(f"malcolm serve: web GUI at http://localhost:{port}/")
+        _rest_and_gui(port)
+    finally:
+        _stop(proc)
+
+
+def test_a_port_in_use_is_reported_and_serving_goes_on():
+    with socket.socket() as taken:
+        taken.bind(("0.0.0.0", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        proc = _start("demo", "--web-port", str(port))
+        try:
+            for line in proc.stdout:
+                if line.startswith("Serving until interrupted"):
+                    break
+        finally:
+            err = _stop(proc)
+    assert f"malcolm demo: no web server on port {port}: " in err
