@@ -13,7 +13,7 @@ from aiohttp import WSCloseCode, WSMsgType, web
 from malcolm.core import Process
 
 from . import protocol as p
-from . import session as session_module
+from .outbox import Outbox
 from .rest import add_rest_routes
 from .session import Session
 
@@ -69,53 +69,38 @@ class WebServer:
     async def _websocket(self, request: web.Request) -> web.WebSocketResponse:
         ws = web.WebSocketResponse(max_msg_size=FRAME_LIMIT, heartbeat=30)
         await ws.prepare(request)
-        queue: asyncio.Queue[str | None] = asyncio.Queue()
+        session: Session
 
-        def send(text: str) -> None:
-            if session.closed:
-                return
-            if queue.qsize() >= session_module.MAX_QUEUED:
-                # a client that does not read is dropped, not buffered forever
-                log.warning("web client %s is not reading: dropped", request.remote)
-                session.closed = True
-                while not queue.empty():
-                    queue.get_nowait()
-                queue.put_nowait(None)
-                closing = asyncio.ensure_future(
-                    ws.close(code=WSCloseCode.POLICY_VIOLATION, message=b"not reading")
-                )
-                session.tasks.add(closing)
-                closing.add_done_callback(session.tasks.discard)
-                return
-            queue.put_nowait(text)
+        def stuck() -> None:
+            # a client that does not read is dropped, not buffered forever
+            log.warning("web client %s is not reading: dropped", request.remote)
+            session.closed = True
+            closing = asyncio.ensure_future(
+                ws.close(code=WSCloseCode.POLICY_VIOLATION, message=b"not reading")
+            )
+            session.tasks.add(closing)
+            closing.add_done_callback(session.tasks.discard)
 
-        session = Session(self.process, send)
+        outbox = Outbox(ws, stuck)
+        session = Session(self.process, outbox.send)
         self.sessions.add(session)
-        writer = asyncio.ensure_future(self._write(ws, queue))
         try:
             async for msg in ws:
                 if msg.type in (WSMsgType.TEXT, WSMsgType.BINARY):
-                    session.handle(msg.data)
+                    outbox.inline = True
+                    try:
+                        session.handle(msg.data)
+                    finally:
+                        outbox.inline = False
+                    await outbox.flush()
                 if session.closed:
                     break
         finally:
             await session.close()
-            queue.put_nowait(None)
-            await writer
+            await outbox.close()
             if not ws.closed:
                 await ws.close()
         return ws
-
-    @staticmethod
-    async def _write(ws: web.WebSocketResponse, queue: asyncio.Queue) -> None:
-        while True:
-            text = await queue.get()
-            if text is None:
-                return
-            try:
-                await ws.send_str(text)
-            except (ConnectionError, RuntimeError):
-                return  # the client went; its reader ends the session
 
 
 async def start_web_server(
