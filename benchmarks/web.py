@@ -309,7 +309,17 @@ def main() -> None:
     port, echo_port = free_port(), free_port()
     url = f"http://127.0.0.1:{port}/ws"
     demo = start(
-        [sys.executable, "-m", "malcolm", "demo", "--web-port", str(port)], "web GUI at"
+        [
+            sys.executable,
+            "-m",
+            "malcolm",
+            "demo",
+            "--web-port",
+            str(port),
+            "--pva-port",
+            "0",
+        ],
+        "web GUI at",
     )
     try:
         replies = asyncio.run(captured_replies(url))

@@ -40,9 +40,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     generator = demo_generator(duration=args.duration) if args.scan else None
     try:
+        zebra2 = getattr(args, "zebra2", False)
         return asyncio.run(
             serve_demo(
-                args.scan, generator=generator, freeze=True, web_port=args.web_port
+                args.scan,
+                generator=generator,
+                freeze=True,
+                pva_port=args.pva_port,
+                zebra2=zebra2,
+                web_port=args.web_port,
             )
         )
     except Exception as e:  # no traceback reaches a user
@@ -113,7 +119,15 @@ def cmd_serve(args: argparse.Namespace) -> int:
         sys.stdout.flush()
 
     try:
-        asyncio.run(serve(process, ready, freeze=True, web_port=args.web_port))
+        asyncio.run(
+            serve(
+                process,
+                ready,
+                freeze=True,
+                pva_port=args.pva_port,
+                web_port=args.web_port,
+            )
+        )
     except Exception as e:
         print(f"malcolm serve: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -134,6 +148,28 @@ def _seconds(text: str) -> float:
             f"expected a positive number of seconds, got {text!r}"
         )
     return value
+
+
+def _port(text: str) -> int:
+    """A TCP port number, 0 to 65535 (for argparse)."""
+    try:
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"expected a port 0-65535, got {text!r}")
+    return port
+
+
+def add_pva_port(parser: argparse.ArgumentParser) -> None:
+    """``--pva-port`` of serve and demo (docs/pva.md)."""
+    parser.add_argument(
+        "--pva-port",
+        type=_port,
+        default=5075,
+        metavar="PORT",
+        help="serve the blocks over pvAccess on PORT (default 5075; 0: off)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -175,6 +211,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.05,
         metavar="SECONDS",
         help="seconds per point of the --scan (default 0.05)",
+    )
+    add_pva_port(demo)
+    demo.add_argument(
+        "--zebra2",
+        action="store_true",
+        help="add a simulated Zebra2 box, its manager ZEBRA2 and ZEBRA2:CAPTURE",
     )
     add_web_port(demo)
     demo.set_defaults(func=cmd_demo)
@@ -237,8 +279,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="look for definitions in DIR too (repeatable)",
     )
     serve.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    add_pva_port(serve)
     add_web_port(serve)
     serve.set_defaults(func=cmd_serve)
+
+    from malcolm.sim.zebra2.cli import add_parser as add_sim_zebra2
+
+    add_sim_zebra2(commands)
+
+    from malcolm.io.pva.client_cli import add_parsers as add_pva_client
+
+    add_pva_client(commands)  # get, put, call, ls (docs/pva-client.md)
 
     return parser
 

@@ -124,13 +124,18 @@ async def serve_demo(
     signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM),
     generator: dict[str, Any] | None = None,
     freeze: bool = False,
+    pva_port: int = 0,
+    zebra2: bool = False,
     web_port: int | None = None,
 ) -> int:
     """Serve the demo process until one of ``signals``, or run its scan
     (``generator``, by default :func:`demo_generator`'s grid). ``freeze``
     builds and starts it under :func:`malcolm.core.long_lived` (the command
-    line does: its blocks live until the program ends). ``web_port`` (not 0
-    or None) serves it on the web too (docs/web.md).
+    line does: its blocks live until the program ends). ``pva_port`` (if not
+    0) serves the blocks over pvAccess on that port, from before they start.
+    ``zebra2`` adds a simulated Zebra2 box with its manager (``ZEBRA2``) and
+    capture block (:mod:`malcolm.parts.zebra2_demo`). ``web_port``
+    (not 0 or None) serves it on the web too (docs/web.md).
 
     The exit status: 0 once the scan has Finished (``scan``), or when serving
     is stopped by a signal; ``128 + signal`` (130 for SIGINT, 143 for
@@ -150,19 +155,41 @@ async def serve_demo(
 
     for sig in signals:
         loop.add_signal_handler(sig, on_signal, sig)
+    pva = None
     try:
+        box = None
         with long_lived() if freeze else contextlib.nullcontext():
             process = demo_process()
+            if pva_port:
+                from malcolm.io.pva import start_pva_server
+                from malcolm.io.pva.client_blocklist import add_block_list
+
+                pva = await start_pva_server(process, pva_port)
+                add_block_list(process)  # for malcolm ls (docs/pva-client.md)
+            if zebra2:
+                from malcolm.parts.zebra2_demo import start_demo_zebra2
+
+                box = await start_demo_zebra2(process)
+                out.write(
+                    f"malcolm demo: simulated Zebra2 box: control {box.host}:"
+                    f"{box.control_port}, data {box.host}:{box.data_port}\n"
+                )
             await process.start()
         from malcolm.io.web.cli import start_if_asked
 
         web = await start_if_asked(process, web_port, "malcolm demo", out, err)
         try:
+            if pva is not None:
+                out.write(f"malcolm demo: pvAccess on {pva.address}\n")
             status = await _demo(process, scan, generator, stop, received, out, err)
         finally:
             if web is not None:
                 await web.close()
+            if pva is not None:
+                await pva.close()
             await process.stop()
+            if box is not None:
+                await box.close()
     finally:
         for sig in signals:
             loop.remove_signal_handler(sig)

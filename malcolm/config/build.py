@@ -50,6 +50,7 @@ from .inspection import hook_functions
 from .plan import BlockPlan, Item, Planner, part_kind
 from .process_file import expand_process, load_process_file
 from .registry import is_builtin
+from .remote import make_remote_block
 
 __all__ = [
     "build_block",
@@ -116,6 +117,8 @@ class _Builder:
         if item is None or item.factory is None or not self.make(item.factory):
             return None
         controller = self.call(item)
+        if item.factory is make_remote_block:
+            return controller  # a block mirrored from another process
         if controller is not None and not isinstance(controller, Controller):
             self.problems.add(
                 item.file,
@@ -174,7 +177,9 @@ class _Builder:
                 continue
             owners[part.name] = item.line
             for name, old in before.items():
-                if controller.block[name] is not old:
+                # configure()/validate() are remade when a part adds arguments
+                remade = name in controller.model.methods
+                if controller.block[name] is not old and not remade:
                     self.problems.add(
                         item.file,
                         item.line,

@@ -22,6 +22,10 @@ Parts: the demo's (``parts.HelloPart``, ``parts.CounterPart``,
 document's ``parts.PosPluginPart``, ``parts.DriverRunPart``,
 ``parts.DetectorPart``, ``parts.ZebraPart``, ``parts.MotorPart``.
 
+A Zebra2 box over TCP (``malcolm.parts.zebra2_manager``,
+``malcolm.parts.zebra2_capture``): ``zebra2.Manager`` (children made by
+introspecting the box) and ``zebra2.Capture`` (PCAP capture to HDF5).
+
 Saved-design records (``malcolm.parts.design``): ``parts.ModelPart``,
 ``parts.PalettePart``, ``parts.ExportPart``, ``parts.FollowerPart`` and
 ``fixed.Int|Float|String|Bool|Enum|Table``. They are not parts: a block
@@ -37,7 +41,7 @@ from typing import Any
 from malcolm.controllers.manager import ManagerController
 from malcolm.controllers.runnable import RunnableController
 from malcolm.controllers.stateful import StatefulController
-from malcolm.parts import adcore, soft
+from malcolm.parts import adcore, soft, zebra2_capture, zebra2_manager
 from malcolm.parts.base import Part
 from malcolm.parts.demo import (
     CounterPart,
@@ -110,6 +114,9 @@ _BUILTINS: dict[str, Any] = {
     "parts.DetectorPart": adcore.DetectorPart,
     "parts.ZebraPart": adcore.ZebraPart,
     "parts.MotorPart": adcore.MotorPart,
+    # a Zebra2 box over TCP (docs/zebra2.md)
+    "zebra2.Manager": zebra2_manager.Zebra2ManagerPart,
+    "zebra2.Capture": zebra2_capture.Zebra2CapturePart,
     **DESIGN_KINDS,
 }
 

@@ -38,6 +38,7 @@ from .definitions import (
 from .errors import ConfigError, Problems
 from .inspection import hook_problems, timeout_problems
 from .registry import lookup
+from .remote import make_remote_block, parse_remote
 from .yamlsections import Section, split_kind
 
 __all__ = ["BlockPlan", "Item", "part_kind", "plan_block"]
@@ -109,6 +110,8 @@ class Planner:
         self.problems = problems
         #: definitions whose stand-ins are being planned (to stop cycles)
         self.standing: list[str] = []
+        #: mri -> address of the blocks mirrored from other processes
+        self.remotes: dict[str, str] = {}
 
     def block(
         self,
@@ -131,13 +134,17 @@ class Planner:
                 )
             )
         for client in expanded.clients:
-            if client.fullname not in self.made:
+            mri = client.fullname
+            if "://" in mri:
+                mri, remote = self.remote(client)
+                plan.before += remote
+            elif client.fullname not in self.made:
                 plan.before += self.standin(client)
             items.append(
                 self.child_item(
                     client.part,
                     client.name,
-                    client.fullname,
+                    mri,
                     client.params,
                     client.file,
                     client.line,
@@ -279,6 +286,42 @@ class Planner:
                 )
             else:
                 owners[name] = item.line
+
+    # ---- clients of blocks in other processes (malcolm.config.remote)
+    def remote(self, client: ClientRef) -> tuple[str, list[BlockPlan]]:
+        """The local mri of a ``pva://`` client and the plan of the block
+        mirroring it (none if another client of it made one already)."""
+        try:
+            name = parse_remote(client.fullname)
+        except ValueError as error:
+            self.problems.add(
+                client.file, client.line, f"client '{client.name}': {error}"
+            )
+            return client.fullname, []
+        assert name is not None
+        known = self.remotes.get(name.mri)
+        if known == name.address:
+            return name.mri, []
+        if known is not None or name.mri in self.made:
+            elsewhere = f"pva://{known}" if known else "this process"
+            self.problems.add(
+                client.file,
+                client.line,
+                f"client '{client.name}': {name} would mirror block '{name.mri}'"
+                f" here, which is already a block of {elsewhere}",
+            )
+            return name.mri, []
+        self.remotes[name.mri] = name.address
+        self.made.add(name.mri)
+        item = Item(
+            f"client {name}",
+            client.file,
+            client.line,
+            make_remote_block,
+            {"mri": name.mri, "address": name.address},
+            _fixed_line(client.line),
+        )
+        return name.mri, [BlockPlan(name.mri, client.file, client.line, item)]
 
     # ---- stand-ins
     def standin(self, client: ClientRef) -> list[BlockPlan]:

@@ -82,22 +82,44 @@ def plan_scan(
     return ScanPlan(points, spr, tuple(accumulate(breakpoints)))
 
 
+def plans_on_loop(params: Mapping[str, Any]) -> bool:
+    """Whether planning ``params`` is cheap enough to do on the loop: the
+    generator is ScanPoints already, or the scan is cheap to build
+    (`malcolm.scan.cheap_to_build`, breakpoints counted as data) and the
+    modules that build it are loaded (the first scan imports numpy and
+    them, in the worker thread)."""
+    generator = params.get("generator")
+    if is_scan_points(generator):
+        return True
+    if "malcolm.scan.load" not in sys.modules:
+        return False
+    from malcolm.scan.cost import CHEAP_BUILD_COST, DATA_ITEM_COST, build_cost
+
+    try:
+        breakpoints = len(params.get("breakpoints") or ())
+    except (TypeError, ValueError):
+        return False  # not a list: as plan_scan would take it, off the loop
+    extra = breakpoints * DATA_ITEM_COST
+    return build_cost(generator, CHEAP_BUILD_COST - extra) + extra <= CHEAP_BUILD_COST
+
+
 async def plan_scan_off_loop(
     mri: str, params: Mapping[str, Any], simultaneous_axes: Sequence[str]
 ) -> ScanPlan:
-    """:func:`plan_scan` in a worker thread, so that the
-    loop (and every other block) stays live while a big scan's points are
-    computed; at once if the generator is ScanPoints already. The plan is
-    plain data: the caller applies it on the loop. Cancelling the wait
-    leaves the thread to finish on its own.
+    """:func:`plan_scan`, in a worker thread where building the scan is
+    costly, so that the loop (and every other block) stays live while a big
+    scan's points are computed; on the loop where it is cheap
+    (:func:`plans_on_loop`: well under a millisecond, less than the hop to
+    a thread and back). The plan is plain data: the caller applies it on
+    the loop. Cancelling the wait leaves the thread to finish on its own.
 
     A scan is built once: ``malcolm.scan.scan_points`` keeps the last few
     it built by content, so configure() after validate() of the same scan,
     and the children a manager configures with its generator, take the
-    points already built (in the thread: finding them means reading the
-    whole generator, which may be big)."""
+    points already built (in the thread, for a costly scan: finding them
+    means reading the whole generator, which may be big)."""
     axes = list(simultaneous_axes)
-    if is_scan_points(params.get("generator")):
+    if plans_on_loop(params):
         return plan_scan(mri, params, axes)
     return await asyncio.to_thread(plan_scan, mri, dict(params), axes)
 

@@ -373,9 +373,15 @@ class BlockMeta(Meta):
         return d
 
 
+#: element types a list keeps as they are (a long list of them is copied in C)
+_SCALARS = frozenset({float, int, str, bool, type(None)})
+
+
 def _plain(value: Any) -> Any:
     """Plain data for the wire: tuples become lists, numpy values Python ones."""
     if isinstance(value, tuple | list):
+        if len(value) > 16 and _SCALARS.issuperset(map(type, value)):
+            return list(value)  # e.g. a GDA array of positions: no call per item
         return [_plain(v) for v in value]
     if isinstance(value, Mapping):
         return {k: _plain(v) for k, v in value.items()}

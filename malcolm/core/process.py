@@ -97,6 +97,27 @@ class Process:
         controller.block.set_listener(self._on_changes)
         controller.block.owner = self.owner
 
+    def remove_controller(self, mri: str) -> Controller:
+        """Stop hosting ``mri``'s block (stop the controller first if it runs).
+
+        The block is found no more; each subscriber of one of its paths gets
+        the change ``[[]]`` (deleted; None with ``delta=False``), then nothing.
+        """
+        owner = self.owner
+        if owner is not None and not owner.here():
+            what = f"the blocks of process {self.name!r}"
+            done, controller = owner.elsewhere(what, self.remove_controller, mri)
+            if done:
+                return controller
+        controller = self.get_controller(mri)
+        del self._controllers[mri]
+        controller.block.set_listener(None)
+        for sub in self._subs.pop(mri, []):
+            # nothing is queued for it after this: it is off the list
+            self._queue.append((sub, [[[]]] if sub.delta else None))
+        self._flush()
+        return controller
+
     @property
     def mris(self) -> list[str]:
         return list(self._controllers)

@@ -62,10 +62,13 @@ async def serve(
     signals: Iterable[int] | None = None,
     logger: logging.Logger | None = None,
     freeze: bool = False,
+    pva_port: int = 0,
     web_port: int | None = None,
 ) -> None:
     """Start ``process`` on the current loop, logging state changes; run until
     one of ``signals`` (default SIGINT and SIGTERM) arrives, then stop it.
+    ``pva_port`` (if not 0) serves its blocks over pvAccess on that port from
+    before they start (docs/pva.md), logging the address.
 
     ``ready(process)`` is called once every block has started. ``freeze``
     starts the blocks under :func:`malcolm.core.long_lived` (for a process
@@ -80,7 +83,17 @@ async def serve(
     for sig in sigs:
         loop.add_signal_handler(sig, stop.set)
     subs = watch_states(process, logger)
+    pva = None
     try:
+        if pva_port:
+            from malcolm.io.pva import start_pva_server
+            from malcolm.io.pva.client_blocklist import add_block_list
+
+            pva = await start_pva_server(process, pva_port)
+            add_block_list(process)  # for malcolm ls (docs/pva-client.md)
+            (logger or logging.getLogger("malcolm.serve")).info(
+                "pvAccess: serving on %s", pva.address
+            )
         if freeze:
             with long_lived():
                 await process.start()
@@ -101,6 +114,8 @@ async def serve(
         for sig in sigs:
             loop.remove_signal_handler(sig)
         try:
+            if pva is not None:
+                await pva.close()
             await process.stop()
         finally:
             for sub in subs:

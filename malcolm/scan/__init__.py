@@ -18,6 +18,7 @@ from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from .cost import build_cost, cheap_to_build
     from .errors import GeneratorError
     from .files import read_generator_file
     from .load import scan_points
@@ -28,6 +29,8 @@ __all__ = [
     "Dimension",
     "GeneratorError",
     "ScanPoints",
+    "build_cost",
+    "cheap_to_build",
     "read_generator_file",
     "scan_points",
 ]
@@ -37,6 +40,8 @@ _WHERE = {
     "Dimension": "points",
     "GeneratorError": "errors",
     "ScanPoints": "points",
+    "build_cost": "cost",
+    "cheap_to_build": "cost",
     "read_generator_file": "files",
     "scan_points": "load",
 }

@@ -205,7 +205,11 @@ def _check_finite(generators: list[Generator], bounded: Generator | None) -> Non
     few values per generator (`Generator.extremes`)."""
     for gen in generators:
         for path, axis, values in gen.extremes(bounds=gen is bounded):
-            if not np.all(np.isfinite(values)):
+            if isinstance(values, np.ndarray):
+                finite = bool(np.all(np.isfinite(values)))
+            else:  # a few Python floats (a line's)
+                finite = all(math.isfinite(v) for v in values)
+            if not finite:
                 raise GeneratorError(
                     path,
                     f"positions or bounds of axis {axis!r} are not all finite "
@@ -245,6 +249,10 @@ def compound_points(data: Mapping[str, Any]) -> ScanPoints:
             seen[axis] = gen.path
 
     if duration is not None and duration < 0:
+        if duration != -1:  # issue 9: a negative duration is refused
+            raise GeneratorError(
+                "duration", f"expected at least 0 (or -1: none), got {duration}"
+            )
         duration = None  # scanpointgenerator's -1: no fixed duration
 
     remaining = []

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from typing import Any
 
 import numpy as np
 
@@ -78,9 +79,10 @@ class Generator(ABC):
         runs from bound i to bound i+1."""
 
     @abstractmethod
-    def extremes(self, bounds: bool) -> list[tuple[str, str, np.ndarray]]:
-        """``(path, axis, values)`` for a few values per axis such that, if they
-        are all finite, so is every position (and every bound if ``bounds``).
+    def extremes(self, bounds: bool) -> list[tuple[str, str, Any]]:
+        """``(path, axis, values)`` for a few values per axis (an array, or a
+        list of floats) such that, if they are all finite, so is every
+        position (and every bound if ``bounds``).
 
         Used to refuse absurdly large inputs without computing every point.
         """
@@ -153,15 +155,22 @@ class LineGenerator(CurveGenerator):
             else:
                 # A single point sits midway; its bounds are start and stop
                 start = (start + stop) / 2.0
-            arrays[axis] = index * step + start
+            if isinstance(index, tuple):  # a few Python floats (extremes)
+                arrays[axis] = [i * step + start for i in index]
+            else:
+                arrays[axis] = index * step + start
         return arrays
 
-    def extremes(self, bounds: bool) -> list[tuple[str, str, np.ndarray]]:
-        """The line at its first and last index: it is monotonic."""
-        arrays = [self.positions_at(np.array([0, self.size - 1]))]
-        if bounds:
-            arrays.append(self.bounds_at(np.array([0, self.size])))
-        return [(self.path, a, values[a]) for values in arrays for a in self.axes]
+    def extremes(self, bounds: bool) -> list[tuple[str, str, Any]]:
+        """The line at its first and last index (and bound): it is monotonic.
+
+        Evaluated with Python floats, which follow the same IEEE rules as the
+        arrays (an overflow is inf, inf times 0 is nan), at a fraction of the
+        cost of numpy on two-element arrays: every configure pays this."""
+        last = float(self.size - 1)
+        index = (0.0, last, -0.5, last + 0.5) if bounds else (0.0, last)
+        curve = self._arrays(index)  # type: ignore[arg-type]
+        return [(self.path, a, curve[a]) for a in self.axes]
 
 
 class SpiralGenerator(CurveGenerator):

@@ -340,3 +340,14 @@ def test_plain_converts_tuples_and_numpy():
     value = plain({"a": (1, (2, 3)), "b": [np.int32(4)], "c": np.arange(2)})
     assert value == {"a": [1, [2, 3]], "b": [4], "c": [0, 1]}
     assert type(value["b"][0]) is int
+
+
+def test_plain_copies_a_long_list_of_scalars_and_converts_numpy_in_one():
+    from malcolm.core.metas import plain
+
+    floats = [float(i) for i in range(100)]
+    out = plain({"points": floats})
+    assert out == {"points": floats} and out["points"] is not floats
+    mixed = floats + [np.float64(2.5)]  # one numpy value: every item converted
+    out = plain(mixed)
+    assert out[-1] == 2.5 and type(out[-1]) is float

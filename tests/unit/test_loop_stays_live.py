@@ -1,6 +1,8 @@
 """Work of more than a few milliseconds runs off the loop (issue 8): while a
-scan's points are computed for configure() or validate(), or a design is
-read or written, other blocks answer puts and gets.
+scan costly to build (a region over a big grid) is computed for configure()
+or validate(), or a design is read or written, other blocks answer puts and
+gets. A scan cheap to build is planned on the loop (the hop to a thread
+would cost more).
 
 Each test holds the slow work in its worker thread until the test has used
 another block (an ordering check, no clock): were the work on the loop, the
@@ -21,6 +23,7 @@ import malcolm.editor.store as store_module
 import malcolm.scan
 from malcolm.core import AbortedError, Process
 from malcolm.demo import demo_generator, demo_process
+from malcolm.scan import cheap_to_build
 
 HOLD = 5.0
 
@@ -73,16 +76,37 @@ def run(body: Callable[[Process], Any]) -> None:
     asyncio.run(main())
 
 
+def costly_scan(ny: int, nx: int) -> dict[str, Any]:
+    """A demo grid with a circle region on it: building it evaluates all
+    ``ny * nx`` points, so it is planned in a worker thread."""
+    generator = demo_generator(ny, nx, 0.001)
+    generator["excluders"] = [
+        {
+            "typeid": "scanpointgenerator:excluder/ROIExcluder:1.0",
+            "axes": ["x", "y"],
+            "rois": [
+                {
+                    "typeid": "scanpointgenerator:roi/CircularROI:1.0",
+                    "centre": [0.5, 0.5],
+                    "radius": 0.5,
+                }
+            ],
+        }
+    ]
+    assert not cheap_to_build(generator)
+    return generator
+
+
 @pytest.mark.parametrize("call", ["configure", "validate"])
 def test_other_blocks_answer_while_scan_points_are_computed(
     monkeypatch: pytest.MonkeyPatch, call: str
 ) -> None:
     held = Held(malcolm.scan.scan_points)
     monkeypatch.setattr(malcolm.scan, "scan_points", held)
+    # a scan no other test computed (their points are kept, by generator)
+    generator = costly_scan(170, 190 if call == "configure" else 210)
 
     async def body(process: Process) -> None:
-        # a scan no other test computed (their points are kept, by generator)
-        generator = demo_generator(7, 9 if call == "configure" else 11, 0.001)
         pending = asyncio.ensure_future(
             process.post(["SCAN", call], {"generator": generator})
         )
@@ -92,10 +116,32 @@ def test_other_blocks_answer_while_scan_points_are_computed(
         await pending
         if call == "configure":
             assert process.get(["SCAN", "state", "value"]) == "Armed"
-            assert process.get(["SCAN", "totalSteps", "value"]) == 7 * 9
+            total = process.get(["SCAN", "totalSteps", "value"])
+            assert 0 < total < 170 * 190  # the circle's points
 
     run(body)
     assert held.threads and threading.main_thread().name not in held.threads
+
+
+def test_a_scan_cheap_to_build_is_planned_on_the_loop(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The hop to a worker thread costs more than building a small grid:
+    configure() builds it on the loop (issue 7's configure target)."""
+    import malcolm.scan.load  # noqa: F401  (the first scan is off the loop)
+
+    calls = Held(malcolm.scan.scan_points)
+    calls.release()  # nothing held: only where it runs is recorded
+    monkeypatch.setattr(malcolm.scan, "scan_points", calls)
+    generator = demo_generator(4, 7, 0.001)
+    assert cheap_to_build(generator)
+
+    async def body(process: Process) -> None:
+        await process.post(["SCAN", "configure"], {"generator": generator})
+        assert process.get(["SCAN", "totalSteps", "value"]) == 28
+
+    run(body)
+    assert calls.threads and set(calls.threads) == {threading.main_thread().name}
 
 
 def test_other_blocks_answer_while_a_design_is_written(

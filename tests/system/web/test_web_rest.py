@@ -103,7 +103,7 @@ def _rest_and_gui(port: int) -> None:
 
 def test_malcolm_demo_serves_the_web_and_prints_its_address():
     port = _free_port()
-    proc = _start("demo", "--web-port", str(port))
+    proc = _start("demo", "--web-port", str(port), "--pva-port", "0")
     try:
         line = proc.stdout.readline()
         assert line.startswith(f"malcolm demo: web GUI at http://localhost:{port}/")
@@ -117,7 +117,9 @@ def test_malcolm_serve_serves_the_web_too(tmp_path):
     process_file = (
         Path(__file__).resolve().parents[3] / "malcolm/blocks/demo/process.yaml"
     )
-    proc = _start("serve", str(process_file), "--web-port", str(port))
+    proc = _start(
+        "serve", str(process_file), "--web-port", str(port), "--pva-port", "0"
+    )
     try:
         line = proc.stdout.readline()
         assert line.startswith(f"malcolm serve: web GUI at http://localhost:{port}/")
@@ -131,7 +133,7 @@ def test_a_port_in_use_is_reported_and_serving_goes_on():
         taken.bind(("0.0.0.0", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        proc = _start("demo", "--web-port", str(port))
+        proc = _start("demo", "--web-port", str(port), "--pva-port", "0")
         try:
             for line in proc.stdout:
                 if line.startswith("Serving until interrupted"):

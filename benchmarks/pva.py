@@ -1,0 +1,395 @@
+"""Issue 9's pvAccess benchmarks: the served demo beside a bare p4p server
+doing the same, in one run on this machine, as ratios with the targets.
+
+    .venv/bin/python -m benchmarks.pva [--ops 300] [--no-load]
+
+Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
+
+- served: the demo process in this process (a ThreadedProcess) with
+  :func:`malcolm.io.pva.start_pva_server`; bare: a p4p server in this
+  process with a SharedPV per name, values of the very same types, whose
+  handlers answer in p4p's thread (a greet RPC, a put that checks the
+  number and posts it with a timeStamp, the COUNTER block's structure).
+- one p4p client Context each; each figure is the median of ``--ops``
+  round trips: a method call (HELLO.greet), a put of COUNTER.counter, a
+  get of it, a get of the whole COUNTER block;
+- counter increments a second seen by a monitor: the value set as fast as
+  the server side can for 2 s (on the process's loop; bare: a thread
+  posting), counting the monitor's updates;
+- monitor updates per change: puts one after another, updates counted;
+- start to first get: ``python -m malcolm demo --pva-port P`` launched
+  until a client's get of HELLO succeeds, a new client each attempt
+  (median of 3);
+- server RSS: the load of tests/system (50 clients monitoring every demo
+  block through a scan) three times against a served demo, its RSS after
+  each (skip with ``--no-load``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from p4p import Type, Value
+from p4p.client.thread import Context
+from p4p.server import Server, StaticProvider
+from p4p.server.raw import SharedPV
+
+from malcolm.demo import demo_generator, demo_process
+from malcolm.embed import start_process
+from malcolm.io.pva import start_pva_server
+from malcolm.io.pva.convert import to_value
+
+ROOT = Path(__file__).resolve().parents[1]
+WIDTH = 44
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def server_conf(udp: int) -> dict[str, str]:
+    return {
+        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
+        "EPICS_PVAS_BROADCAST_PORT": str(udp),
+        "EPICS_PVAS_BEACON_ADDR_LIST": f"127.0.0.1:{udp}",
+        "EPICS_PVAS_AUTO_BEACON_ADDR_LIST": "NO",
+    }
+
+
+def client(udp: int, tcp: int) -> Context:
+    conf = {
+        "EPICS_PVA_ADDR_LIST": f"127.0.0.1:{udp}",
+        "EPICS_PVA_AUTO_ADDR_LIST": "NO",
+        "EPICS_PVA_BROADCAST_PORT": str(free_port(socket.SOCK_DGRAM)),
+        "EPICS_PVA_NAME_SERVERS": f"127.0.0.1:{tcp}",
+    }
+    return Context("pva", conf=conf, useenv=False, nt=False)
+
+
+def now_stamp() -> dict[str, int]:
+    t = time.time()
+    return {"secondsPastEpoch": int(t), "nanoseconds": int(t % 1 * 1e9)}
+
+
+class Bare:
+    """A bare p4p server doing what the served demo does, on names B.*"""
+
+    def __init__(self, block: dict[str, Any], greet_type: Type) -> None:
+        self.counter_type = to_value(block["counter"]).type()
+        self.counter = SharedPV(handler=self, initial=to_value(block["counter"]))
+        self.block = SharedPV(initial=to_value(block))
+        self.block_type = to_value(block).type()
+        self.greet = SharedPV(handler=self, initial=Value(Type([]), {}))
+        self.greet_type = greet_type
+        udp = free_port(socket.SOCK_DGRAM)
+        provider = StaticProvider("bare")
+        provider.add("B.counter", self.counter)
+        provider.add("B", self.block)
+        provider.add("B.greet", self.greet)
+        conf = {**server_conf(udp), "EPICS_PVAS_SERVER_PORT": "0"}
+        self.server = Server(providers=[provider], conf=conf, useenv=False)
+        self.tcp = int(self.server.conf()["EPICS_PVAS_SERVER_PORT"])
+        self.udp = udp
+        self.provider = provider
+
+    def put(self, pv: SharedPV, op: Any) -> None:
+        try:
+            number = float(op.value()["value"])
+        except (TypeError, ValueError) as e:
+            op.done(error=f"BadValueError: {e}")
+            return
+        self.set(number)
+        op.done()
+
+    def set(self, number: float) -> None:
+        """As a served block's attribute changes: its channel and the block's
+        channel each get the value and timeStamp."""
+        stamp = now_stamp()
+        value = Value(self.counter_type)
+        value["value"] = number
+        value["timeStamp"] = stamp
+        self.counter.post(value)
+        whole = Value(self.block_type)
+        whole["counter.value"] = number
+        whole["counter.timeStamp"] = stamp
+        self.block.post(whole)
+
+    def rpc(self, pv: SharedPV, op: Any) -> None:
+        name = op.value()["name"]
+        op.done(Value(self.greet_type, {"greeting": f"Hello {name}"}))
+
+    def stop(self) -> None:
+        self.server.stop()
+
+
+def timed(func: Callable[[], Any], ops: int) -> float:
+    """Median seconds of ``func()`` over ``ops`` calls (after 20 warm-ups)."""
+    for _ in range(20):
+        func()
+    times = []
+    for _ in range(ops):
+        t0 = time.perf_counter()
+        func()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def monitor_rate(ctx: Context, name: str, spin: Callable[[threading.Event], None]):
+    """Updates a second a monitor of ``name`` sees while ``spin`` sets it."""
+    seen = [0]
+    first = threading.Event()
+
+    def on_update(_value: Any) -> None:
+        seen[0] += 1
+        first.set()
+
+    sub = ctx.monitor(name, on_update)
+    first.wait(5)
+    time.sleep(0.2)
+    stop = threading.Event()
+    before = seen[0]
+    t0 = time.perf_counter()
+    worker = threading.Thread(target=spin, args=(stop,))
+    worker.start()
+    time.sleep(2.0)
+    stop.set()
+    worker.join()
+    elapsed = time.perf_counter() - t0
+    time.sleep(0.3)
+    sub.close()
+    return (seen[0] - before) / elapsed
+
+
+def updates_per_change(ctx: Context, name: str, puts: int) -> float:
+    seen = [0]
+    first = threading.Event()
+
+    def on_update(_value: Any) -> None:
+        seen[0] += 1
+        first.set()
+
+    sub = ctx.monitor(name, on_update)
+    first.wait(5)
+    time.sleep(0.3)
+    before = seen[0]
+    for n in range(puts):
+        ctx.put(name, 1000.0 + n, timeout=5)
+    time.sleep(0.5)
+    sub.close()
+    return (seen[0] - before) / puts
+
+
+def served_spin(process: Any) -> Callable[[threading.Event], None]:
+    block = process.get_block("COUNTER")
+
+    async def spin(stop: threading.Event) -> None:
+        n = 0
+        while not stop.is_set():
+            for _ in range(100):
+                n += 1
+                block.counter.set_value(float(n))
+            await asyncio.sleep(0)
+
+    return lambda stop: process.call_threadsafe(spin, stop).result()
+
+
+def bare_spin(bare: Bare) -> Callable[[threading.Event], None]:
+    def spin(stop: threading.Event) -> None:
+        n = 0
+        while not stop.is_set():
+            for _ in range(100):
+                n += 1
+                bare.set(float(n))
+            time.sleep(0)
+
+    return spin
+
+
+def launch_demo() -> tuple[subprocess.Popen[str], int, int]:
+    tcp, udp = free_port(), free_port(socket.SOCK_DGRAM)
+    env = dict(os.environ, **server_conf(udp))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "malcolm", "demo", "--pva-port", str(tcp)],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    return proc, tcp, udp
+
+
+def start_to_first_get() -> float:
+    """Seconds from launching ``malcolm demo`` to a get of HELLO that works.
+
+    Each attempt is a new client: one client retrying would measure its own
+    back-off (p4p waits about a second before searching again after a miss
+    or a refused connection), not when the server could first answer."""
+    t0 = time.perf_counter()
+    proc, tcp, udp = launch_demo()
+    try:
+        while True:
+            ctx = client(udp, tcp)
+            try:
+                ctx.get("HELLO", timeout=0.05)
+                return time.perf_counter() - t0
+            except Exception:
+                if time.perf_counter() - t0 > 30:
+                    raise
+            finally:
+                ctx.close()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(20)
+
+
+def rss_mib(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def load_rss(runs: int = 3, clients: int = 50) -> list[float]:
+    """The served demo's RSS after each of ``runs`` loads."""
+    mris = ["HELLO", "COUNTER", "MOTOR:X", "MOTOR:Y", "DET1", "DET2", "SCAN"]
+    proc, tcp, udp = launch_demo()
+    control = client(udp, tcp)
+    out = []
+    try:
+        control.get("HELLO", timeout=30)
+        for _ in range(runs):
+            contexts, subs = [], []
+            for _ in range(clients):
+                ctx = client(udp, tcp)
+                got = threading.Semaphore(0)
+                subs += [ctx.monitor(m, lambda v, g=got: g.release()) for m in mris]
+                for _ in mris:
+                    got.acquire(timeout=30)
+                contexts.append(ctx)
+            gen = demo_generator(ny=3, nx=10, duration=0.005)
+            control.rpc("SCAN.configure", to_value({"generator": gen}), timeout=60)
+            control.rpc("SCAN.run", Value(Type([]), {}), timeout=60)
+            control.rpc("SCAN.reset", Value(Type([]), {}), timeout=60)
+            for sub in subs:
+                sub.close()
+            for ctx in contexts:
+                ctx.close()
+            time.sleep(3)
+            out.append(rss_mib(proc.pid))
+    finally:
+        control.close()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(20)
+    return out
+
+
+def row(case: str, malcolm: float, bare: float, target: str, ok: bool) -> str:
+    ratio = malcolm / bare if bare else float("nan")
+    verdict = "ok" if ok else "MISSED"
+    return (
+        f"{case:<{WIDTH}}{malcolm:>10.4g}{bare:>10.4g}{ratio:>8.2f}"
+        f"  {target:<16}{verdict}"
+    )
+
+
+def main(ops: int = 300, load: bool = True) -> None:
+    process = demo_process()
+    tp = start_process(process)
+    udp = free_port(socket.SOCK_DGRAM)
+    served = process.call_threadsafe(
+        start_pva_server, process, 0, server_conf(udp)
+    ).result(10)
+    tcp = int(served.address.rsplit(":", 1)[1])
+    m = client(udp, tcp)
+    greet_type = m.rpc(
+        "HELLO.greet", Value(Type([("name", "s")]), {"name": "x"}), timeout=5
+    ).type()
+    bare = Bare(process.get(["COUNTER"]), greet_type)
+    b = client(bare.udp, bare.tcp)
+    args = Value(Type([("name", "s")]), {"name": "bench"})
+    lines = [
+        f"{'figure':<{WIDTH}}{'malcolm':>10}{'bare':>10}{'ratio':>8}  "
+        f"{'target':<16}verdict"
+    ]
+    try:
+        pairs = [
+            ("method call round trip (ms)", "HELLO.greet", "B.greet", "call"),
+            ("put of one field (ms)", "COUNTER.counter", "B.counter", "put"),
+            ("get of one field (ms)", "COUNTER.counter", "B.counter", "get"),
+            ("get of a whole block (ms)", "COUNTER", "B", "get"),
+        ]
+        for case, mine, theirs, kind in pairs:
+            if kind == "call":
+                fm = timed(lambda n=mine: m.rpc(n, args, timeout=5), ops)
+                fb = timed(lambda n=theirs: b.rpc(n, args, timeout=5), ops)
+            elif kind == "put":
+                fm = timed(lambda n=mine: m.put(n, 3.0, timeout=5), ops)
+                fb = timed(lambda n=theirs: b.put(n, 3.0, timeout=5), ops)
+            else:
+                fm = timed(lambda n=mine: m.get(n, timeout=5), ops)
+                fb = timed(lambda n=theirs: b.get(n, timeout=5), ops)
+            lines.append(row(case, fm * 1e3, fb * 1e3, "<= 1.2x bare", fm <= 1.2 * fb))
+        rm = monitor_rate(m, "COUNTER.counter", served_spin(process))
+        rb = monitor_rate(b, "B.counter", bare_spin(bare))
+        lines.append(
+            row(
+                "counter increments/s seen by a monitor",
+                rm,
+                rb,
+                ">= 0.8x bare",
+                rm >= 0.8 * rb,
+            )  # fmt: skip
+        )
+        um = updates_per_change(m, "COUNTER.counter", 100)
+        ub = updates_per_change(b, "B.counter", 100)
+        lines.append(row("monitor updates per change", um, ub, "exactly 1", um == 1.0))
+    finally:
+        m.close()
+        b.close()
+        bare.stop()
+        process.call_threadsafe(served.close).result(10)
+        tp.stop()
+    start = statistics.median(start_to_first_get() for _ in range(3))
+    lines.append(
+        f"{'process start to first get (s)':<{WIDTH}}{start:>10.3f}{'-':>10}"
+        f"{'-':>8}  {'<= 0.8 s':<16}{'ok' if start <= 0.8 else 'MISSED'}"
+    )
+    if load:
+        rss = load_rss()
+        flat = rss[-1] - rss[-2] < 2
+        lines.append(
+            f"{'server RSS after the load test (MiB)':<{WIDTH}}{rss[-1]:>10.1f}"
+            f"{'-':>10}{'-':>8}  {'<= 60, flat':<16}"
+            f"{'ok' if rss[-1] <= 60 and flat else 'MISSED'}"
+            f"  (runs: {', '.join(f'{r:.1f}' for r in rss)})"
+        )
+    one, five, fifteen = os.getloadavg()
+    lines.append(
+        f"(ratio = malcolm / bare; machine: {os.cpu_count()} cores, load average"
+        f" {one:.2f} {five:.2f} {fifteen:.2f}; reference: 7.5x bare on a method"
+        " call, 2 updates per change)"
+    )
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ops", type=int, default=300)
+    parser.add_argument("--no-load", action="store_true")
+    a = parser.parse_args()
+    main(a.ops, not a.no_load)

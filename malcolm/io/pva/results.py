@@ -1,0 +1,99 @@
+"""What a pvAccess method call names and passes, and what it gets back.
+
+interop.md §2's three call forms: the block's channel with pvRequest
+``{method: "<name>"}`` and the arguments as the value (what GDA sends); the
+method's own channel ``<mri>.<method>``; an ``epics:nt/NTURI:1.0`` whose
+``path`` is ``<mri>.<method>`` and whose ``query`` holds the arguments.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Any
+
+from p4p import Value
+
+from malcolm.core import BadValueError
+
+from .convert import map_to_value, to_dict
+
+NTURI = "epics:nt/NTURI:1.0"
+
+# where a pvRequest may carry the method's name
+_METHOD_PLACES = ("method", "record._options.method", "field.method")
+
+
+@lru_cache(maxsize=1)
+def version_tag() -> str:
+    """``version:malcolm:<version>``, the tag §2 puts in every block meta."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"version:malcolm:{version('malcolm')}"
+    except PackageNotFoundError:
+        return "version:malcolm:unknown"
+
+
+def _request_method(request: Any) -> str | None:
+    if not isinstance(request, Value):
+        return None
+    for place in _METHOD_PLACES:
+        try:
+            name = request[place]
+        except (KeyError, AttributeError, TypeError, ValueError):
+            continue
+        if isinstance(name, str) and name:
+            return name
+    return None
+
+
+def _args(value: Any, where: str) -> dict[str, Any]:
+    if value is None:
+        return {}
+    args = to_dict(value)
+    if not isinstance(args, dict):
+        raise BadValueError(f"{where}: the arguments must be a structure")
+    args.pop("typeid", None)
+    return args
+
+
+def method_args(
+    path: list[str], value: Any, request: Any
+) -> tuple[str, str, dict[str, Any]]:
+    """``(mri, method, arguments)`` of a call on the channel of ``path``."""
+    channel = ".".join(path)
+    if isinstance(value, Value) and value.getID() == NTURI:
+        try:
+            target = value["path"]
+        except (KeyError, ValueError):
+            target = ""
+        mri, dot, method = str(target).rpartition(".")
+        if not (dot and mri and method):
+            raise BadValueError(
+                f"{channel}: NTURI path {target!r} is not '<mri>.<method>'"
+            )
+        try:
+            query = value["query"]
+        except (KeyError, ValueError):
+            query = None
+        return mri, method, _args(query, f"{target}: query")
+    if len(path) == 2:
+        return path[0], path[1], _args(value, channel)
+    method = _request_method(request)
+    if method is None:
+        raise BadValueError(
+            f"{channel}: a call on a block's channel needs the method's name in "
+            "the pvRequest ({method: '<name>'}), or use channel <mri>.<method>"
+        )
+    return path[0], method, _args(value, f"{channel}.{method}")
+
+
+def result_value(result: Any, returns: Any) -> Value:
+    """A method's result as the Value an RPC returns, typed by its ``returns``
+    MapMeta where it says."""
+    if result is None:
+        result = {}
+    if not isinstance(result, dict):
+        result = {"value": result}
+    elements = returns.get("elements") if isinstance(returns, dict) else None
+    return map_to_value(result, elements)

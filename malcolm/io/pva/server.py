@@ -1,0 +1,456 @@
+"""Serve every block of a Process over pvAccess (interop.md §2), on p4p.
+
+``await start_pva_server(process, port)`` returns a :class:`PvaServer`
+(``await server.close()`` stops it). Channels are made when a client asks
+for them: ``<mri>`` (the whole block) and ``<mri>.<field>`` (one field, or
+``meta``). Each is a p4p ``SharedPV`` fed by one ``process.subscribe`` of
+its path: the first monitor update is the whole structure, each later
+delta of the process becomes exactly one update carrying only the fields
+it changed. A change of shape (a field added or removed, a meta whose
+value type differs) reopens the channel with the new type; a block or
+field that goes away closes it. Channels nobody is connected to are let go.
+
+p4p calls this module from its own threads: name look-ups only read, and
+every put, method call and channel opening is handed to the process's loop
+with ``Process.call_threadsafe`` (docs/channels.md). Errors go back to the
+client as ``"<ExceptionType>: <message>"`` and change nothing.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import copy
+import logging
+import os
+import threading
+from collections.abc import Sequence
+from typing import Any
+
+from p4p import Value
+from p4p.server import DynamicProvider, Server
+from p4p.server.raw import SharedPV
+
+from malcolm.core import (
+    BadValueError,
+    NotFoundError,
+    Process,
+    apply_changes,
+    call_threadsafe,
+)
+
+from .convert import STRUCTURE, assign, fits, spec_at, to_dict, to_value, type_spec
+from .errlog import route_errlog
+from .results import method_args, result_value, version_tag
+
+__all__ = ["PvaServer", "start_pva_server"]
+
+log = logging.getLogger(__name__)
+
+#: seconds a channel nobody is connected to is kept (a client reconnecting)
+RELEASE_DELAY = 2.0
+
+
+def _error_text(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}"
+
+
+class _Channel:
+    """One served name: a SharedPV kept in step with its path in the process."""
+
+    def __init__(self, server: PvaServer, name: str, path: list[str]) -> None:
+        self.server = server
+        self.name = name
+        self.path = path  # [mri] or [mri, field]
+        self.pv = SharedPV(handler=self)
+        self.clients = 0
+        self.made = 0  # makeChannel calls, to tell a release is stale
+        self.data: Any = None
+        self.spec: Any = None
+        self.type: Any = None
+        self.sub: Any = None
+        self.closed = False
+
+    def prime(self) -> None:
+        """Open the PV at once with a snapshot of its path (in p4p's thread:
+        a client never waits on a PV not yet open); :meth:`open`'s
+        subscription then corrects it, on the loop, if it changed."""
+        for _ in range(5):
+            try:
+                data = copy.deepcopy(self.server.process.get(self.path))
+                break
+            except RuntimeError:  # changed on the loop while read: again
+                continue
+        else:
+            return
+        self.data = self._tagged(data)
+        self.spec = type_spec(self.data)
+        value = to_value(self.data)
+        self.type = value.type()
+        self.pv.open(value)
+
+    # ---- on the loop
+    def open(self) -> None:
+        if self.closed:
+            return
+        try:
+            self.sub = self.server.process.subscribe(self.path, self._on_changes)
+        except NotFoundError:  # gone between the look-up and now
+            self.server._forget(self)
+
+    def _tagged(self, data: Any) -> Any:
+        """``data`` with the version tag in the block meta's tags."""
+        if not isinstance(data, dict):
+            return data
+        meta = data if self.path[1:] == ["meta"] else None
+        if len(self.path) == 1:
+            meta = data.get("meta")
+        if isinstance(meta, dict):
+            tags = list(meta.get("tags") or [])
+            if not any(str(t).startswith("version:") for t in tags):
+                meta["tags"] = [*tags, version_tag()]
+        return data
+
+    def _meta_changed(self, changes: list[list[Any]]) -> bool:
+        if self.path[1:] == ["meta"]:
+            return True
+        return len(self.path) == 1 and any(c[0][:1] == ["meta"] for c in changes)
+
+    def _on_changes(self, changes: list[list[Any]]) -> None:
+        try:
+            self._apply(changes)
+        except Exception as e:  # a monitor must never stop the process
+            log.exception("pva %s: %s", self.name, _error_text(e))
+
+    def _apply(self, changes: list[list[Any]]) -> None:
+        if self.closed:
+            return
+        if self.data is None or any(not c[0] and len(c) == 2 for c in changes):
+            if changes[-1] == [[]]:
+                self.server._forget(self)
+                return
+            before = self.data
+            self.data = self._tagged(apply_changes(self.data, changes))
+            if before is not None and self.pv.isOpen():
+                if self.data == before:
+                    return  # the snapshot opened with was already current
+                spec = type_spec(self.data)
+                if spec == self.spec:
+                    value = Value(self.type)
+                    assign_all(value, self.data, spec)
+                    self.pv.post(value)
+                    return
+            self._reopen()
+            return
+        if any(len(c) == 1 and not c[0] for c in changes):
+            self.server._forget(self)  # the block or field was deleted
+            return
+        self.data = _apply_changes(self.data, changes)
+        if self._meta_changed(changes):
+            self._tagged(self.data)
+        posted: list[tuple[list[str], Any, Any]] = []
+        reshape = False
+        for change in changes:
+            path = list(change[0])
+            if self.path[1:] == ["meta"] or (
+                len(self.path) == 1 and path[:1] == ["meta"]
+            ):
+                # the meta (and its version tag) goes whole
+                path = [] if self.path[1:] == ["meta"] else ["meta"]
+            sub_spec = spec_at(self.spec, path) if len(change) == 2 else None
+            if sub_spec is None:
+                reshape = True
+                break
+            data = _at(self.data, path)
+            if isinstance(sub_spec, tuple) and not fits(sub_spec, data):
+                reshape = True  # a structure of another shape: a new type?
+                break
+            posted.append((path, data, sub_spec))
+        if reshape:
+            spec = type_spec(self.data)
+            if spec != self.spec:
+                self._reopen(spec)
+                return
+            posted = [([], self.data, spec)]
+        value = Value(self.type)
+        for path, data, sub_spec in posted:
+            if path:
+                assign(value, path, data, sub_spec)
+            else:
+                assign_all(value, data, sub_spec)
+        self.pv.post(value)
+
+    def _reopen(self, spec: Any = None) -> None:
+        self.spec = spec or type_spec(self.data)
+        value = to_value(self.data)
+        self.type = value.type()
+        if self.pv.isOpen():
+            self.pv.close()
+        self.pv.open(value)
+
+    def release(self, made: int) -> None:
+        """Let go of the channel if nobody connected to it since ``made``."""
+        self.server._forget(self, made)
+
+    def close(self) -> None:
+        self.closed = True
+        if self.sub is not None:
+            self.server.process.unsubscribe(self.sub)
+            self.sub = None
+        self.pv.close(destroy=True)
+
+    # ---- p4p handler (called in p4p's threads)
+    def onFirstConnect(self, pv: SharedPV) -> None:
+        self.clients = 1
+
+    def onLastDisconnect(self, pv: SharedPV) -> None:
+        self.clients = 0
+        self.server._schedule_release(self)
+
+    def put(self, pv: SharedPV, op: Any) -> None:
+        self.server._hand(op, self._put(op))
+
+    def rpc(self, pv: SharedPV, op: Any) -> None:
+        self.server._hand(op, self._rpc(op))
+
+    # ---- operations, on the loop
+    async def _put(self, op: Any) -> None:
+        value = op.value()
+        mri = self.path[0]
+        puts: dict[str, Any] = {}  # field -> new value, in the order given
+        for dotted in sorted(value.changedSet()):
+            parts = dotted.split(".")
+            if len(self.path) == 2:
+                field, rest, prefix = self.path[1], parts, ""
+            else:
+                field, rest, prefix = parts[0], parts[1:], f"{parts[0]}."
+            if rest[:1] != ["value"]:
+                raise BadValueError(
+                    f"{mri}.{'.'.join([field, *rest])}: only a value can be put"
+                )
+            if field not in puts:
+                puts[field] = _plain_put(to_dict(value[f"{prefix}value"]))
+        if not puts:
+            raise BadValueError(f"{self.name}: a put must set a value")
+        for field, new in puts.items():
+            await self.server.process.put([mri, field], new)
+        op.done()
+
+    async def _rpc(self, op: Any) -> None:
+        mri, method, args = method_args(self.path, op.value(), op.pvRequest())
+        process = self.server.process
+        result = await process.post([mri, method], args)
+        returns = process.get([mri, method, "meta", "returns"])
+        op.done(result_value(result, returns))
+
+
+def _apply_changes(data: Any, changes: list[list[Any]]) -> Any:
+    """:func:`malcolm.core.apply_changes` for changes below the root, copying
+    only dicts (the only values changed in place later)."""
+    for change in changes:
+        *parents, last = change[0]
+        target = data
+        for key in parents:
+            target = target[key]
+        if len(change) == 1:
+            del target[last]
+        else:
+            new = change[1]
+            target[last] = _copy_dicts(new) if isinstance(new, dict) else new
+    return data
+
+
+def _copy_dicts(data: Any) -> Any:
+    """A copy of the dicts in ``data`` (what is later changed in place)."""
+    if isinstance(data, dict):
+        return {k: _copy_dicts(v) for k, v in data.items()}
+    return data
+
+
+def _at(data: Any, path: Sequence[str]) -> Any:
+    for key in path:
+        data = data[key]
+    return data
+
+
+def assign_all(value: Value, data: Any, spec: Any) -> None:
+    """Every field of ``data`` set in ``value`` (a whole new structure)."""
+    for key, sub in spec[2]:
+        if isinstance(data, dict) and key in data and data[key] is not None:
+            assign(value, [key], data[key], sub)
+
+
+def _plain_put(new: Any) -> Any:
+    """A put's value as the block takes it (a table's columns without id)."""
+    if isinstance(new, dict) and new.get("typeid", STRUCTURE) != STRUCTURE:
+        new = {k: v for k, v in new.items() if k != "typeid"}
+    return new
+
+
+class _Names:
+    """p4p's DynamicProvider handler: which names exist, and their channels."""
+
+    def __init__(self, server: PvaServer) -> None:
+        self.server = server
+
+    def testChannel(self, name: str) -> Any:
+        try:
+            if self.server._path_of(name) is not None:
+                return True
+        except Exception as e:  # a look-up must never stop the server
+            log.debug("pva search %r: %s", name, _error_text(e))
+        # not cached as missing: a block made later is found at once
+        return DynamicProvider.NotYet
+
+    def makeChannel(self, name: str, peer: str) -> Any:
+        try:
+            return self.server._channel(name)
+        except Exception as e:
+            log.debug("pva channel %r: %s", name, _error_text(e))
+            return None
+
+
+class PvaServer:
+    """A pvAccess server for every block of ``process`` (see the module doc)."""
+
+    def __init__(
+        self, process: Process, port: int = 5075, conf: dict[str, str] | None = None
+    ) -> None:
+        self.process = process
+        self.port = port
+        self.conf = dict(conf or {})
+        self._lock = threading.Lock()
+        self._channels: dict[str, _Channel] = {}
+        self._provider: DynamicProvider | None = None
+        self._server: Server | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._tasks: set[asyncio.Task[Any]] = set()
+
+    @property
+    def address(self) -> str:
+        """``host:port`` the server listens on (its TCP port)."""
+        if self._server is None:
+            return f"0.0.0.0:{self.port}"
+        conf = self._server.conf()
+        port = conf.get("EPICS_PVAS_SERVER_PORT", str(self.port))
+        hosts = conf.get("EPICS_PVAS_INTF_ADDR_LIST", "").split() or ["0.0.0.0"]
+        return f"{hosts[0].split(':')[0]}:{port}"
+
+    def start(self) -> None:
+        """Listen (on the process's loop thread, before or after it starts)."""
+        self._loop = asyncio.get_running_loop()
+        route_errlog()
+        # the environment's EPICS_PVA* settings, but always this port
+        conf = {k: v for k, v in os.environ.items() if k.startswith("EPICS_PVA")}
+        conf["EPICS_PVAS_SERVER_PORT"] = str(self.port)
+        conf.update(self.conf)
+        self._provider = DynamicProvider(f"malcolm-{id(self)}", _Names(self))
+        try:
+            self._server = Server(providers=[self._provider], conf=conf, useenv=False)
+        except RuntimeError as e:
+            raise RuntimeError(
+                f"pvAccess port {self.port}: {e} (--pva-port 0 serves no pvAccess)"
+            ) from None
+
+    async def close(self) -> None:
+        """Stop serving: every client is disconnected."""
+        server, self._server = self._server, None
+        if server is not None:
+            server.stop()
+        with self._lock:
+            channels = list(self._channels.values())
+            self._channels.clear()
+        for chan in channels:
+            chan.close()
+        for task in list(self._tasks):
+            task.cancel()
+
+    # ---- names (any thread)
+    def _path_of(self, name: str) -> list[str] | None:
+        mris = self._mris()
+        if name in mris:
+            return [name]
+        mri, dot, field = name.rpartition(".")
+        if dot and mri in mris:
+            block = self.process.get_block(mri)
+            if field == "meta" or field in block:
+                return [mri, field]
+        return None
+
+    def _mris(self) -> list[str]:
+        for _ in range(3):
+            try:
+                return self.process.mris
+            except RuntimeError:  # the dict changed while copied: again
+                continue
+        return []
+
+    def _channel(self, name: str) -> SharedPV | None:
+        path = self._path_of(name)
+        if path is None:
+            return None
+        with self._lock:
+            chan = self._channels.get(name)
+            if chan is None:
+                chan = _Channel(self, name, path)
+                chan.prime()
+                self._channels[name] = chan
+                self._call(chan.open)
+            chan.made += 1
+            return chan.pv
+
+    def _schedule_release(self, chan: _Channel) -> None:
+        made = chan.made
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(
+                loop.call_later, RELEASE_DELAY, chan.release, made
+            )
+
+    def _forget(self, chan: _Channel, made: int | None = None) -> None:
+        """Drop ``chan``; with ``made``, only if it is still unused since then
+        (checked under the lock makeChannel takes, so no client gets it)."""
+        with self._lock:
+            if made is not None and (chan.clients or chan.made != made):
+                return
+            if self._channels.get(chan.name) is chan:
+                del self._channels[chan.name]
+        chan.close()
+
+    def _hand(self, op: Any, coro: Any) -> None:
+        """Run an operation on the loop; its error goes back to the client."""
+
+        async def run() -> None:
+            try:
+                await coro
+            except Exception as e:
+                op.done(error=_error_text(e))
+
+        try:
+            future = self._call(run)
+        except Exception as e:
+            coro.close()
+            op.done(error=_error_text(e))
+            return
+        future.add_done_callback(lambda f: None)
+
+    def _call(self, func: Any, *args: Any) -> Any:
+        if self._loop is None:
+            raise RuntimeError("the pvAccess server has not started")
+        return call_threadsafe(self._loop, func, *args)
+
+    @property
+    def channel_names(self) -> list[str]:
+        """The names that have a channel now (for tests and diagnostics)."""
+        with self._lock:
+            return list(self._channels)
+
+
+async def start_pva_server(
+    process: Process, port: int = 5075, conf: dict[str, str] | None = None
+) -> PvaServer:
+    """Serve every block of ``process`` on ``port`` (0: any free port); call on
+    the loop the process runs (or will run) on. ``conf`` adds p4p server
+    settings (``EPICS_PVAS_*``)."""
+    server = PvaServer(process, port, conf)
+    server.start()
+    return server

@@ -1,0 +1,131 @@
+"""Blocks added and removed while served, and bad connections (an
+in-process server on free ports, a p4p client)."""
+
+from __future__ import annotations
+
+import queue
+import socket
+from typing import Any
+
+import pytest
+from p4p.client.thread import Disconnected, TimeoutError
+
+from malcolm.controllers.stateful import StatefulController
+from malcolm.core import Process
+from malcolm.embed import start_process
+from malcolm.io.pva import start_pva_server
+from malcolm.parts.demo import CounterPart
+
+from .conftest import client_conf, free_port
+
+
+@pytest.fixture
+def served():
+    process = Process("runtime")
+    process.add_controller(StatefulController("FIRST", [CounterPart("counter")]))
+    tp = start_process(process)
+    udp = free_port(socket.SOCK_DGRAM)
+    conf = {
+        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
+        "EPICS_PVAS_BROADCAST_PORT": str(udp),
+        "EPICS_PVAS_BEACON_ADDR_LIST": f"127.0.0.1:{udp}",
+        "EPICS_PVAS_AUTO_BEACON_ADDR_LIST": "NO",
+    }
+    server = process.call_threadsafe(start_pva_server, process, 0, conf).result(10)
+    from p4p.client.thread import Context
+
+    ctx = Context("pva", conf=client_conf(udp), useenv=False, nt=False)
+    yield tp, process, server, ctx
+    ctx.close()
+    process.call_threadsafe(server.close).result(10)
+    tp.stop()
+
+
+def add_block(process: Process, mri: str) -> None:
+    controller = StatefulController(mri, [CounterPart("counter")])
+
+    async def add() -> None:
+        process.add_controller(controller)
+        await controller.start()
+
+    process.call_threadsafe(add).result(10)
+
+
+def remove_block(process: Process, mri: str) -> None:
+    async def remove() -> None:
+        await process.get_controller(mri).stop()
+        process.remove_controller(mri)
+
+    process.call_threadsafe(remove).result(10)
+
+
+def next_value(updates: queue.Queue[object]) -> Any:
+    """The next update that is a value (not the Disconnected a monitor with
+    notify_disconnect starts with)."""
+    while isinstance(got := updates.get(timeout=10), Exception):
+        pass
+    return got
+
+
+def test_a_block_added_at_run_time_appears(served):
+    tp, process, server, ctx = served
+    assert ctx.get("FIRST", timeout=5)["state.value"] == "Ready"
+    with pytest.raises(TimeoutError):
+        ctx.get("LATER", timeout=0.5)  # searched for before it exists
+    add_block(process, "LATER")
+    assert ctx.get("LATER", timeout=10)["state.value"] == "Ready"
+    assert ctx.get("LATER.counter", timeout=5)["value"] == 0.0
+
+
+def test_a_block_removed_at_run_time_disappears(served):
+    tp, process, server, ctx = served
+    add_block(process, "GOING")
+    updates: queue.Queue[object] = queue.Queue()
+    sub = ctx.monitor("GOING.counter", updates.put, notify_disconnect=True)
+    try:
+        assert next_value(updates)["value"] == 0.0
+        remove_block(process, "GOING")
+        assert isinstance(updates.get(timeout=10), Disconnected)
+    finally:
+        sub.close()
+    with pytest.raises(TimeoutError):
+        ctx.get("GOING", timeout=0.5)
+    assert "GOING" not in process.mris
+    assert not [n for n in server.channel_names if n.startswith("GOING")]
+    assert ctx.get("FIRST", timeout=5)["state.value"] == "Ready"  # others stay
+
+
+def test_a_field_added_at_run_time_reshapes_the_block_channel(served):
+    tp, process, server, ctx = served
+    from malcolm.core import Attribute, NumberMeta
+
+    updates: queue.Queue[object] = queue.Queue()
+    sub = ctx.monitor("FIRST", updates.put, notify_disconnect=True)
+    try:
+        assert "extra" not in next_value(updates).keys()
+        block = process.get_block("FIRST")
+        attr = Attribute("extra", NumberMeta("int32"))
+        process.call_threadsafe(block.add, attr).result(5)
+        while "extra" not in (got := next_value(updates)).keys():
+            pass  # the channel is reopened with the new type
+        assert got["extra"].getID() == "epics:nt/NTScalar:1.0"
+        assert "extra" in got["meta.fields"]
+    finally:
+        sub.close()
+
+
+def test_raw_tcp_connect_and_close_never_wedges_it(served):
+    tp, process, server, ctx = served
+    port = int(server.address.rsplit(":", 1)[1])
+    for n in range(200):
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+            if n % 2:
+                s.sendall(b"\xca\x02\x00\x01garbage that is not pvAccess" * 3)
+    # and one left open, silent, while others work
+    idle = socket.create_connection(("127.0.0.1", port), timeout=5)
+    try:
+        assert ctx.get("FIRST.state", timeout=5)["value"] == "Ready"
+        ctx.put("FIRST.counter", 3, timeout=5)
+        assert ctx.get("FIRST.counter", timeout=5)["value"] == 3.0
+    finally:
+        idle.close()
