@@ -35,7 +35,15 @@ DELTA = "malcolm:core/Delta:1.0"
 class Served:
     """The demo process and its web server, on a loop in another thread."""
 
-    def __init__(self, process_factory: Callable[[], Any] = demo_process) -> None:
+    def __init__(
+        self,
+        process_factory: Callable[[], Any] = demo_process,
+        extras: Callable[[Any], Any] | None = None,
+    ) -> None:
+        """``extras(process)`` (a coroutine function) adds to the process
+        before it starts; what it returns is closed after it stops."""
+        self.extras = extras
+        self.extra = None
         self.loop = asyncio.new_event_loop()
         self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
         self.thread.start()
@@ -43,6 +51,8 @@ class Served:
         self.server = self.call(self._start)
 
     async def _start(self):
+        if self.extras is not None:
+            self.extra = await self.extras(self.process)
         await self.process.start()
         return await start_web_server(self.process, 0, "127.0.0.1")
 
@@ -73,6 +83,8 @@ class Served:
         async def stop():
             await self.server.close()
             await self.process.stop()
+            if self.extra is not None:
+                await self.extra.close()
 
         try:
             self.call(stop)

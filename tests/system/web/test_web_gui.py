@@ -251,3 +251,34 @@ def test_the_gui_connects_again_when_the_server_is_back(page):
     expect(counter).to_have_value("9")
     page.locator('button[data-method="increment"]').click()
     expect(counter).to_have_value("10")
+
+
+def test_a_zebra2_managers_wiring_table_is_drawn(browser, tmp_path):
+    from malcolm.parts.zebra2_demo import start_demo_zebra2
+
+    from .conftest import Served, Shots
+
+    served = Served(extras=start_demo_zebra2)
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    try:
+        pg = context.new_page()
+        pg.served = served
+        open_block(pg, "ZEBRA2")
+        palette = pg.locator('[data-palette="ZEBRA2"]')
+        # the box's 19 blocks start at (0, 0): place two of them apart
+        for name, x, y in [("CLOCK1", 20, 120), ("PCAP", 300, 60)]:
+            served.call(
+                lambda n=name, x=x, y=y: served.process.post(
+                    ["ZEBRA2", "set_position"], {"block_name": n, "x": x, "y": y}
+                )
+            )
+        expect(palette.locator('[data-child="PCAP"]')).to_have_css("left", "320px")
+        served.call(lambda: served.process.put(["ZEBRA2:PCAP", "TRIG"], "CLOCK1.OUT"))
+        wire = palette.locator('path[data-wire="CLOCK1.OUT → PCAP.TRIG"]')
+        expect(wire).to_have_count(1, timeout=15000)
+        Shots(tmp_path)(pg, "zebra2-wiring")
+        served.call(lambda: served.process.put(["ZEBRA2:PCAP", "TRIG"], "ZERO"))
+        expect(wire).to_have_count(0, timeout=15000)
+    finally:
+        context.close()
+        served.close()

@@ -139,7 +139,9 @@ class BlockView {
       this.progress.bar.dataset.done = done;
       this.progress.bar.dataset.total = total;
     }
-    if (this.palette && touched.has("layout")) this.palette.update(data.layout.value);
+    if (this.palette && (touched.has("layout") || touched.has("wiring"))) {
+      this.palette.update(data.layout.value, data.wiring?.value);
+    }
   }
 
   close() {

@@ -1,7 +1,8 @@
 // A manager's palette: each visible child drawn at its layout position,
 // dragged to move it (set_position), shown or hidden (set_visible); arrows
 // where a child's input port (a field tagged sinkPort:/inport:) selects
-// another child's output port (tagged sourcePort:/outport:<type>:<name>).
+// another child's output port (tagged sourcePort:/outport:<type>:<name>),
+// and for each row of the manager's own `wiring` table (sink, source).
 
 import { h } from "./widgets.js";
 
@@ -35,8 +36,11 @@ export class Palette {
     this.layout = null;
   }
 
-  update(layout) {
+  // `wiring`: a manager's own table of wires (sink, source as BLOCK.FIELD),
+  // as a Zebra2 manager has, drawn beside what the children's ports say
+  update(layout, wiring) {
     this.layout = layout;
+    this.wiring = wiring || this.wiring;
     const rows = (layout.name || []).map((name, i) => ({
       name, mri: layout.mri[i], x: layout.x[i], y: layout.y[i], visible: layout.visible[i],
     }));
@@ -100,7 +104,7 @@ export class Palette {
       this.status("");
     } catch (e) {
       this.status(e.message);
-      if (this.layout) this.update(this.layout);
+      if (this.layout) this.update(this.layout, this.wiring);
     }
   }
 
@@ -109,6 +113,13 @@ export class Palette {
     const owner = new Map(); // output port name -> row
     for (const r of rows) for (const p of ports(this.children.get(r.mri)?.data).sources) owner.set(p.name, r);
     const lines = [];
+    const byName = new Map(rows.map((r) => [r.name, r]));
+    const w = this.wiring || {};
+    (w.sink || []).forEach((sink, i) => {
+      const source = w.source[i];
+      const from = byName.get(source.split(".")[0]), to = byName.get(sink.split(".")[0]);
+      if (from && to && from !== to) lines.push([from, to, `${source} → ${sink}`]);
+    });
     for (const r of rows) {
       for (const sink of ports(this.children.get(r.mri)?.data).sinks) {
         const from = owner.get(sink.source);
