@@ -50,6 +50,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
                 freeze=True,
                 pva_port=args.pva_port,
                 zebra2=zebra2,
+                web_port=args.web_port,
             )
         )
     except Exception as e:  # no traceback reaches a user
@@ -128,7 +129,15 @@ def cmd_serve(args: argparse.Namespace) -> int:
         sys.stdout.flush()
 
     try:
-        asyncio.run(serve(process, ready, freeze=True, pva_port=args.pva_port))
+        asyncio.run(
+            serve(
+                process,
+                ready,
+                freeze=True,
+                pva_port=args.pva_port,
+                web_port=args.web_port,
+            )
+        )
     except Exception as e:
         print(f"malcolm serve: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
@@ -175,6 +184,8 @@ def add_pva_port(parser: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
+    from malcolm.io.web.cli import add_web_port
+
     parser = argparse.ArgumentParser(
         prog="malcolm", description="Malcolm beamline-control tools."
     )
@@ -217,6 +228,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="add a simulated Zebra2 box, its manager ZEBRA2 and ZEBRA2:CAPTURE",
     )
+    add_web_port(demo)
     demo.set_defaults(func=cmd_demo)
 
     graph = commands.add_parser(
@@ -283,6 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="channel backend of ca.* attributes (default pyepics; soft: in memory)",
     )
     add_pva_port(serve)
+    add_web_port(serve)
     serve.set_defaults(func=cmd_serve)
 
     sim_ioc_cli.add_parser(commands)

@@ -126,6 +126,7 @@ async def serve_demo(
     freeze: bool = False,
     pva_port: int = 0,
     zebra2: bool = False,
+    web_port: int | None = None,
 ) -> int:
     """Serve the demo process until one of ``signals``, or run its scan
     (``generator``, by default :func:`demo_generator`'s grid). ``freeze``
@@ -133,7 +134,8 @@ async def serve_demo(
     line does: its blocks live until the program ends). ``pva_port`` (if not
     0) serves the blocks over pvAccess on that port, from before they start.
     ``zebra2`` adds a simulated Zebra2 box with its manager (``ZEBRA2``) and
-    capture block (:mod:`malcolm.parts.zebra2_demo`).
+    capture block (:mod:`malcolm.parts.zebra2_demo`). ``web_port``
+    (not 0 or None) serves it on the web too (docs/web.md).
 
     The exit status: 0 once the scan has Finished (``scan``), or when serving
     is stopped by a signal; ``128 + signal`` (130 for SIGINT, 143 for
@@ -173,11 +175,16 @@ async def serve_demo(
                     f"{box.control_port}, data {box.host}:{box.data_port}\n"
                 )
             await process.start()
+        from malcolm.io.web.cli import start_if_asked
+
+        web = await start_if_asked(process, web_port, "malcolm demo", out, err)
         try:
             if pva is not None:
                 out.write(f"malcolm demo: pvAccess on {pva.address}\n")
             status = await _demo(process, scan, generator, stop, received, out, err)
         finally:
+            if web is not None:
+                await web.close()
             if pva is not None:
                 await pva.close()
             await process.stop()

@@ -63,6 +63,7 @@ async def serve(
     logger: logging.Logger | None = None,
     freeze: bool = False,
     pva_port: int = 0,
+    web_port: int | None = None,
 ) -> None:
     """Start ``process`` on the current loop, logging state changes; run until
     one of ``signals`` (default SIGINT and SIGTERM) arrives, then stop it.
@@ -72,6 +73,7 @@ async def serve(
     ``ready(process)`` is called once every block has started. ``freeze``
     starts the blocks under :func:`malcolm.core.long_lived` (for a process
     that serves until the program ends, as ``malcolm serve`` does).
+    ``web_port`` (not 0 or None) serves it on the web too (docs/web.md).
     """
     import signal as _signal
 
@@ -97,9 +99,16 @@ async def serve(
                 await process.start()
         else:
             await process.start()
+        from malcolm.io.web.cli import start_if_asked
+
+        web = await start_if_asked(process, web_port, "malcolm serve")
         if ready is not None:
             ready(process)
-        await stop.wait()
+        try:
+            await stop.wait()
+        finally:
+            if web is not None:
+                await web.close()
         (logger or logging.getLogger("malcolm.serve")).info("stopping")
     finally:
         for sig in sigs:
