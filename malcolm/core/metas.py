@@ -379,6 +379,11 @@ _SCALARS = frozenset({float, int, str, bool, type(None)})
 
 def _plain(value: Any) -> Any:
     """Plain data for the wire: tuples become lists, numpy values Python ones."""
+    kind = type(value)
+    if kind in _SCALARS:  # the common case, without the ABC checks below
+        return value
+    if kind is dict:
+        return {k: _plain(v) for k, v in value.items()}
     if isinstance(value, tuple | list):
         if len(value) > 16 and _SCALARS.issuperset(map(type, value)):
             return list(value)  # e.g. a GDA array of positions: no call per item
