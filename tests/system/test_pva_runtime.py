@@ -129,3 +129,21 @@ def test_raw_tcp_connect_and_close_never_wedges_it(served):
         assert ctx.get("FIRST.counter", timeout=5)["value"] == 3.0
     finally:
         idle.close()
+
+
+def test_the_block_list_follows_blocks_added_and_removed(served):
+    from malcolm.io.pva.client_blocklist import add_block_list
+
+    tp, process, server, ctx = served
+    process.call_threadsafe(add_block_list, process).result(10)
+    updates: queue.Queue[object] = queue.Queue()
+    sub = ctx.monitor("localhost.blocks", updates.put, notify_disconnect=True)
+    try:
+        assert list(next_value(updates)["value"]) == ["FIRST"]
+        add_block(process, "LATER")
+        assert list(next_value(updates)["value"]) == ["FIRST", "LATER"]
+        remove_block(process, "FIRST")
+        assert list(next_value(updates)["value"]) == ["LATER"]
+        assert list(ctx.get("localhost.blocks", timeout=5)["value"]) == ["LATER"]
+    finally:
+        sub.close()
