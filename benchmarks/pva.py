@@ -19,7 +19,10 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
 - monitor updates per change: puts one after another, updates counted;
 - start to first get: ``python -m malcolm demo --pva-port P`` launched
   until a client's get of HELLO succeeds, a new client each attempt
-  (median of 3);
+  (median of 3). malcolm's modules are byte-compiled first (``compileall``,
+  as ``pip install`` does): with ``PYTHONDONTWRITEBYTECODE`` set, as in this
+  project's sessions, every launch would otherwise compile all of malcolm
+  from source (about 0.1-0.3 s here), a cost no installed malcolm pays;
 - server RSS: the load of tests/system (50 clients monitoring every demo
   block through a scan) three times against a served demo, its RSS after
   each (skip with ``--no-load``).
@@ -29,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import compileall
 import os
 import signal
 import socket
@@ -364,6 +368,7 @@ def main(ops: int = 300, load: bool = True) -> None:
         bare.stop()
         process.call_threadsafe(served.close).result(10)
         tp.stop()
+    compileall.compile_dir(ROOT / "malcolm", quiet=1)
     start = statistics.median(start_to_first_get() for _ in range(3))
     lines.append(
         f"{'process start to first get (s)':<{WIDTH}}{start:>10.3f}{'-':>10}"

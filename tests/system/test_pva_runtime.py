@@ -147,3 +147,20 @@ def test_the_block_list_follows_blocks_added_and_removed(served):
         assert list(ctx.get("localhost.blocks", timeout=5)["value"]) == ["LATER"]
     finally:
         sub.close()
+
+
+def test_p4p_is_imported_without_setuptools_which_still_imports_whole():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, malcolm.io.pva\n"
+        "print('setuptools' in sys.modules, 'setuptools_dso' in sys.modules)\n"
+        "import setuptools_dso\n"
+        "print(callable(setuptools_dso.setup), callable(setuptools_dso.find_dso))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "False", "True", "True"]
