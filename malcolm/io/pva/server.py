@@ -41,6 +41,7 @@ from malcolm.core import (
 from .convert import STRUCTURE, assign, fits, spec_at, to_dict, to_value, type_spec
 from .errlog import route_errlog
 from .results import method_args, result_value, version_tag
+from .setters import Setter, compile_setter
 
 __all__ = ["PvaServer", "start_pva_server"]
 
@@ -69,6 +70,10 @@ class _Channel:
         self.type: Any = None
         self.sub: Any = None
         self.closed = False
+        # change path -> its compiled setter, for self.spec (reset with it)
+        self._setters: dict[tuple[str, ...], Setter] = {}
+        # the block meta and a meta channel go whole: never the fast path
+        self._fast_ok = self.path[1:] != ["meta"]
 
     def prime(self) -> None:
         """Open the PV at once with a snapshot of its path (in p4p's thread:
@@ -123,6 +128,8 @@ class _Channel:
 
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
+            return
+        if self._fast_ok and self.data is not None and self._apply_fast(changes):
             return
         if self.data is None or any(not c[0] and len(c) == 2 for c in changes):
             if changes[-1] == [[]]:
@@ -179,7 +186,35 @@ class _Channel:
                 assign_all(value, data, sub_spec)
         self.pv.post(value)
 
+    def _apply_fast(self, changes: list[list[Any]]) -> bool:
+        """Post ``changes`` if each sets a field whose type it still fits
+        (the common case: a value, its alarm and timeStamp); False, with
+        nothing done, for anything else (deletions, the whole channel, the
+        block's meta, a new shape), which :meth:`_apply` does in full."""
+        value = Value(self.type)
+        block = len(self.path) == 1
+        setters = self._setters
+        for change in changes:
+            if len(change) != 2:
+                return False
+            path = change[0]
+            if not path or (block and path[0] == "meta"):
+                return False
+            key = tuple(path)
+            setter = setters.get(key)
+            if setter is None:
+                sub_spec = spec_at(self.spec, path)
+                if sub_spec is None:
+                    return False
+                setter = setters[key] = compile_setter(sub_spec, ".".join(path))
+            if not setter(value, change[1]):
+                return False
+        self.data = _apply_changes(self.data, changes)
+        self.pv.post(value)
+        return True
+
     def _reopen(self, spec: Any = None) -> None:
+        self._setters.clear()
         self.spec = spec or type_spec(self.data)
         value = to_value(self.data)
         self.type = value.type()
