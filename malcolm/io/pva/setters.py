@@ -72,8 +72,7 @@ def _struct_setter(spec: Spec, dotted: str, subset: bool) -> Setter:
     log = typeid == _METHOD_LOG
     prefix = f"{dotted}." if dotted else ""
     children = [
-        (k, compile_setter(sub, prefix + k, log and k == "value"))
-        for k, sub in spec[2]
+        (k, compile_setter(sub, prefix + k, log and k == "value")) for k, sub in spec[2]
     ]
 
     def struct(value: Value, data: Any) -> bool:
