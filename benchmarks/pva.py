@@ -15,7 +15,7 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
   get of it, a get of the whole COUNTER block;
 - counter increments a second seen by a monitor: the value set as fast as
   the server side can for 2 s (on the process's loop; bare: a thread
-  posting), counting the monitor's updates;
+  posting), counting the updates of a monitor in a process of its own;
 - monitor updates per change: puts one after another, updates counted;
 - start to first get: ``python -m malcolm demo --pva-port P`` launched
   until a client's get of HELLO succeeds, a new client each attempt
@@ -152,30 +152,66 @@ def timed(func: Callable[[], Any], ops: int) -> float:
     return statistics.median(times)
 
 
-def monitor_rate(ctx: Context, name: str, spin: Callable[[threading.Event], None]):
-    """Updates a second a monitor of ``name`` sees while ``spin`` sets it."""
-    seen = [0]
-    first = threading.Event()
+# the monitor of monitor_rate, in a process of its own (see monitor_rate)
+MONITOR = """
+import sys, threading, time
+from p4p.client.thread import Context
+udp, tcp, name = sys.argv[1:]
+ctx = Context("pva", useenv=False, nt=False, conf={
+    "EPICS_PVA_ADDR_LIST": "127.0.0.1:" + udp, "EPICS_PVA_AUTO_ADDR_LIST": "NO",
+    "EPICS_PVA_NAME_SERVERS": "127.0.0.1:" + tcp})
+seen = [0]
+first = threading.Event()
+def on_update(_value):
+    seen[0] += 1
+    first.set()
+sub = ctx.monitor(name, on_update)
+first.wait(10)
+print("ready", flush=True)
+sys.stdin.readline()
+before, t0 = seen[0], time.perf_counter()
+sys.stdin.readline()
+print((seen[0] - before) / (time.perf_counter() - t0), flush=True)
+sub.close()
+ctx.close()
+"""
 
-    def on_update(_value: Any) -> None:
-        seen[0] += 1
-        first.set()
 
-    sub = ctx.monitor(name, on_update)
-    first.wait(5)
-    time.sleep(0.2)
-    stop = threading.Event()
-    before = seen[0]
-    t0 = time.perf_counter()
-    worker = threading.Thread(target=spin, args=(stop,))
-    worker.start()
-    time.sleep(2.0)
-    stop.set()
-    worker.join()
-    elapsed = time.perf_counter() - t0
-    time.sleep(0.3)
-    sub.close()
-    return (seen[0] - before) / elapsed
+def monitor_rate(
+    udp: int, tcp: int, name: str, spin: Callable[[threading.Event], None]
+) -> float:
+    """Updates a second a monitor of ``name`` sees while ``spin`` sets it.
+
+    The monitor is a client in a process of its own, as GDA is: in the
+    server's process its callbacks would compete for the GIL with the
+    thread that sets the counter, and it would count how often it got the
+    GIL (the updates it misses are squashed into the next by pvAccess's
+    queue), not what the server sends."""
+    mon = subprocess.Popen(
+        [sys.executable, "-c", MONITOR, str(udp), str(tcp), name],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert mon.stdin is not None and mon.stdout is not None
+    try:
+        if mon.stdout.readline().strip() != "ready":
+            raise RuntimeError(f"the monitor of {name} did not connect")
+        time.sleep(0.2)
+        stop = threading.Event()
+        worker = threading.Thread(target=spin, args=(stop,))
+        mon.stdin.write("start\n")
+        mon.stdin.flush()
+        worker.start()
+        time.sleep(2.0)
+        mon.stdin.write("stop\n")
+        mon.stdin.flush()
+        stop.set()
+        worker.join()
+        return float(mon.stdout.readline())
+    finally:
+        mon.kill()
+        mon.wait(10)
 
 
 def updates_per_change(ctx: Context, name: str, puts: int) -> float:
@@ -348,8 +384,8 @@ def main(ops: int = 300, load: bool = True) -> None:
                 fm = timed(lambda n=mine: m.get(n, timeout=5), ops)
                 fb = timed(lambda n=theirs: b.get(n, timeout=5), ops)
             lines.append(row(case, fm * 1e3, fb * 1e3, "<= 1.2x bare", fm <= 1.2 * fb))
-        rm = monitor_rate(m, "COUNTER.counter", served_spin(process))
-        rb = monitor_rate(b, "B.counter", bare_spin(bare))
+        rm = monitor_rate(udp, tcp, "COUNTER.counter", served_spin(process))
+        rb = monitor_rate(bare.udp, bare.tcp, "B.counter", bare_spin(bare))
         lines.append(
             row(
                 "counter increments/s seen by a monitor",

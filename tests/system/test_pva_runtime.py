@@ -164,3 +164,33 @@ def test_p4p_is_imported_without_setuptools_which_still_imports_whole():
     )
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["False", "False", "True", "True"]
+
+
+def test_a_released_channel_reuses_its_pv_and_serves_current_values(
+    served, monkeypatch
+):
+    import time
+
+    from p4p.client.thread import Context
+
+    import malcolm.io.pva.server as server_module
+
+    monkeypatch.setattr(server_module, "RELEASE_DELAY", 0.1)
+    tp, process, server, ctx = served
+    conf = ctx.conf()
+    for round_ in range(3):
+        other = Context("pva", conf=conf, useenv=False, nt=False)
+        updates: queue.Queue[object] = queue.Queue()
+        sub = other.monitor("FIRST.counter", updates.put, notify_disconnect=True)
+        assert next_value(updates)["value"] == float(round_)
+        process.call_threadsafe(
+            process.get_block("FIRST").counter.set_value, float(round_ + 1)
+        ).result(5)
+        assert next_value(updates)["value"] == float(round_ + 1)
+        sub.close()
+        other.close()
+        deadline = time.monotonic() + 10
+        while "FIRST.counter" in server.channel_names:
+            assert time.monotonic() < deadline, "the channel was never released"
+            time.sleep(0.05)
+        assert "FIRST.counter" in server._kept  # closed, kept for the next
