@@ -8,8 +8,10 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
 - served: the demo process in this process (a ThreadedProcess) with
   :func:`malcolm.io.pva.start_pva_server`; bare: a p4p server in this
   process with a SharedPV per name, values of the very same types, whose
-  handlers answer in p4p's thread (a greet RPC, a put that checks the
-  number and posts it with a timeStamp, the COUNTER block's structure).
+  handlers answer in p4p's thread: a greet RPC on a channel holding the
+  method's structure that, as a served call does, posts ``took`` and
+  ``returned`` there before answering; a put that checks the number and
+  posts it with a timeStamp to the field's and the block's channels.
 - one p4p client Context each; each figure is the median of ``--ops``
   round trips: a method call (HELLO.greet), a put of COUNTER.counter, a
   get of it, a get of the whole COUNTER block;
@@ -92,12 +94,16 @@ def now_stamp() -> dict[str, int]:
 class Bare:
     """A bare p4p server doing what the served demo does, on names B.*"""
 
-    def __init__(self, block: dict[str, Any], greet_type: Type) -> None:
+    def __init__(
+        self, block: dict[str, Any], greet: dict[str, Any], greet_type: Type
+    ) -> None:
         self.counter_type = to_value(block["counter"]).type()
         self.counter = SharedPV(handler=self, initial=to_value(block["counter"]))
         self.block = SharedPV(initial=to_value(block))
         self.block_type = to_value(block).type()
-        self.greet = SharedPV(handler=self, initial=Value(Type([]), {}))
+        # the method's channel holds the method's structure, as HELLO.greet
+        self.method_type = to_value(greet).type()
+        self.greet = SharedPV(handler=self, initial=to_value(greet))
         self.greet_type = greet_type
         udp = free_port(socket.SOCK_DGRAM)
         provider = StaticProvider("bare")
@@ -133,8 +139,23 @@ class Bare:
         self.block.post(whole)
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
+        """As a served method call: its channel gets ``took`` (the arguments,
+        defaults filled) then ``returned``, each a MethodLog update."""
         name = op.value()["name"]
-        op.done(Value(self.greet_type, {"greeting": f"Hello {name}"}))
+        self.log(pv, "took", {"name": name, "sleep": 0.0})
+        greeting = f"Hello {name}"
+        self.log(pv, "returned", {"greeting": greeting})
+        op.done(Value(self.greet_type, {"greeting": greeting}))
+
+    def log(self, pv: SharedPV, which: str, value: dict[str, Any]) -> None:
+        update = Value(self.method_type)
+        update[which] = {
+            "value": value,
+            "present": list(value),
+            "alarm": {"severity": 0, "status": 0, "message": ""},
+            "timeStamp": now_stamp(),
+        }
+        pv.post(update)
 
     def stop(self) -> None:
         self.server.stop()
@@ -359,7 +380,7 @@ def main(ops: int = 300, load: bool = True) -> None:
     greet_type = m.rpc(
         "HELLO.greet", Value(Type([("name", "s")]), {"name": "x"}), timeout=5
     ).type()
-    bare = Bare(process.get(["COUNTER"]), greet_type)
+    bare = Bare(process.get(["COUNTER"]), process.get(["HELLO", "greet"]), greet_type)
     b = client(bare.udp, bare.tcp)
     args = Value(Type([("name", "s")]), {"name": "bench"})
     lines = [
