@@ -18,7 +18,8 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
 - counter increments a second seen by a monitor: the value set as fast as
   the server side can for 2 s (on the process's loop; bare: a thread
   posting), counting the updates of a monitor in a process of its own;
-- monitor updates per change: puts one after another, updates counted;
+- monitor updates per change: puts one after another, updates counted (by
+  a monitor whose queue holds them all, so none is squashed client-side);
 - start to first get: ``python -m malcolm demo --pva-port P`` launched
   until a client's get of HELLO succeeds, a new client each attempt
   (median of 3). malcolm's modules are byte-compiled first (``compileall``,
@@ -243,7 +244,10 @@ def updates_per_change(ctx: Context, name: str, puts: int) -> float:
         seen[0] += 1
         first.set()
 
-    sub = ctx.monitor(name, on_update)
+    # a queue that holds every update: a client that falls behind (here,
+    # its callbacks waiting for the GIL) gets updates squashed into one by
+    # pvAccess; this figure counts what the server sends per change
+    sub = ctx.monitor(name, on_update, request=f"record[queueSize={2 * puts}]")
     first.wait(5)
     time.sleep(0.3)
     before = seen[0]
