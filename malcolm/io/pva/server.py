@@ -282,8 +282,19 @@ class _Channel:
         mri, method, args = method_args(self.path, op.value(), op.pvRequest())
         process = self.server.process
         result = await process.post([mri, method], args)
-        returns = process.get([mri, method, "meta", "returns"])
-        op.done(result_value(result, returns))
+        op.done(result_value(result, self._returns(mri, method)))
+
+    def _returns(self, mri: str, method: str) -> Any:
+        """The method's ``returns`` meta: from this channel's copy if it
+        holds the method (kept current on the loop), else from the process."""
+        try:
+            if self.path == [mri, method]:
+                return self.data["meta"]["returns"]
+            if self.path == [mri]:
+                return self.data[method]["meta"]["returns"]
+        except (KeyError, TypeError):
+            pass
+        return self.server.process.get([mri, method, "meta", "returns"])
 
 
 class _Handler:
