@@ -8,18 +8,24 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
 - served: the demo process in this process (a ThreadedProcess) with
   :func:`malcolm.io.pva.start_pva_server`; bare: a p4p server in this
   process with a SharedPV per name, values of the very same types, whose
-  handlers answer in p4p's thread (a greet RPC, a put that checks the
-  number and posts it with a timeStamp, the COUNTER block's structure).
+  handlers answer in p4p's thread: a greet RPC on a channel holding the
+  method's structure that, as a served call does, posts ``took`` and
+  ``returned`` there before answering; a put that checks the number and
+  posts it with a timeStamp to the field's and the block's channels.
 - one p4p client Context each; each figure is the median of ``--ops``
   round trips: a method call (HELLO.greet), a put of COUNTER.counter, a
   get of it, a get of the whole COUNTER block;
 - counter increments a second seen by a monitor: the value set as fast as
   the server side can for 2 s (on the process's loop; bare: a thread
-  posting), counting the monitor's updates;
-- monitor updates per change: puts one after another, updates counted;
+  posting), counting the updates of a monitor in a process of its own;
+- monitor updates per change: puts one after another, updates counted (by
+  a monitor whose queue holds them all, so none is squashed client-side);
 - start to first get: ``python -m malcolm demo --pva-port P`` launched
   until a client's get of HELLO succeeds, a new client each attempt
-  (median of 3);
+  (median of 3). malcolm's modules are byte-compiled first (``compileall``,
+  as ``pip install`` does): with ``PYTHONDONTWRITEBYTECODE`` set, as in this
+  project's sessions, every launch would otherwise compile all of malcolm
+  from source (about 0.1-0.3 s here), a cost no installed malcolm pays;
 - server RSS: the load of tests/system (50 clients monitoring every demo
   block through a scan) three times against a served demo, its RSS after
   each (skip with ``--no-load``).
@@ -29,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import compileall
 import os
 import signal
 import socket
@@ -88,12 +95,16 @@ def now_stamp() -> dict[str, int]:
 class Bare:
     """A bare p4p server doing what the served demo does, on names B.*"""
 
-    def __init__(self, block: dict[str, Any], greet_type: Type) -> None:
+    def __init__(
+        self, block: dict[str, Any], greet: dict[str, Any], greet_type: Type
+    ) -> None:
         self.counter_type = to_value(block["counter"]).type()
         self.counter = SharedPV(handler=self, initial=to_value(block["counter"]))
         self.block = SharedPV(initial=to_value(block))
         self.block_type = to_value(block).type()
-        self.greet = SharedPV(handler=self, initial=Value(Type([]), {}))
+        # the method's channel holds the method's structure, as HELLO.greet
+        self.method_type = to_value(greet).type()
+        self.greet = SharedPV(handler=self, initial=to_value(greet))
         self.greet_type = greet_type
         udp = free_port(socket.SOCK_DGRAM)
         provider = StaticProvider("bare")
@@ -129,8 +140,23 @@ class Bare:
         self.block.post(whole)
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
+        """As a served method call: its channel gets ``took`` (the arguments,
+        defaults filled) then ``returned``, each a MethodLog update."""
         name = op.value()["name"]
-        op.done(Value(self.greet_type, {"greeting": f"Hello {name}"}))
+        self.log(pv, "took", {"name": name, "sleep": 0.0})
+        greeting = f"Hello {name}"
+        self.log(pv, "returned", {"greeting": greeting})
+        op.done(Value(self.greet_type, {"greeting": greeting}))
+
+    def log(self, pv: SharedPV, which: str, value: dict[str, Any]) -> None:
+        update = Value(self.method_type)
+        update[which] = {
+            "value": value,
+            "present": list(value),
+            "alarm": {"severity": 0, "status": 0, "message": ""},
+            "timeStamp": now_stamp(),
+        }
+        pv.post(update)
 
     def stop(self) -> None:
         self.server.stop()
@@ -148,30 +174,66 @@ def timed(func: Callable[[], Any], ops: int) -> float:
     return statistics.median(times)
 
 
-def monitor_rate(ctx: Context, name: str, spin: Callable[[threading.Event], None]):
-    """Updates a second a monitor of ``name`` sees while ``spin`` sets it."""
-    seen = [0]
-    first = threading.Event()
+# the monitor of monitor_rate, in a process of its own (see monitor_rate)
+MONITOR = """
+import sys, threading, time
+from p4p.client.thread import Context
+udp, tcp, name = sys.argv[1:]
+ctx = Context("pva", useenv=False, nt=False, conf={
+    "EPICS_PVA_ADDR_LIST": "127.0.0.1:" + udp, "EPICS_PVA_AUTO_ADDR_LIST": "NO",
+    "EPICS_PVA_NAME_SERVERS": "127.0.0.1:" + tcp})
+seen = [0]
+first = threading.Event()
+def on_update(_value):
+    seen[0] += 1
+    first.set()
+sub = ctx.monitor(name, on_update)
+first.wait(10)
+print("ready", flush=True)
+sys.stdin.readline()
+before, t0 = seen[0], time.perf_counter()
+sys.stdin.readline()
+print((seen[0] - before) / (time.perf_counter() - t0), flush=True)
+sub.close()
+ctx.close()
+"""
 
-    def on_update(_value: Any) -> None:
-        seen[0] += 1
-        first.set()
 
-    sub = ctx.monitor(name, on_update)
-    first.wait(5)
-    time.sleep(0.2)
-    stop = threading.Event()
-    before = seen[0]
-    t0 = time.perf_counter()
-    worker = threading.Thread(target=spin, args=(stop,))
-    worker.start()
-    time.sleep(2.0)
-    stop.set()
-    worker.join()
-    elapsed = time.perf_counter() - t0
-    time.sleep(0.3)
-    sub.close()
-    return (seen[0] - before) / elapsed
+def monitor_rate(
+    udp: int, tcp: int, name: str, spin: Callable[[threading.Event], None]
+) -> float:
+    """Updates a second a monitor of ``name`` sees while ``spin`` sets it.
+
+    The monitor is a client in a process of its own, as GDA is: in the
+    server's process its callbacks would compete for the GIL with the
+    thread that sets the counter, and it would count how often it got the
+    GIL (the updates it misses are squashed into the next by pvAccess's
+    queue), not what the server sends."""
+    mon = subprocess.Popen(
+        [sys.executable, "-c", MONITOR, str(udp), str(tcp), name],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert mon.stdin is not None and mon.stdout is not None
+    try:
+        if mon.stdout.readline().strip() != "ready":
+            raise RuntimeError(f"the monitor of {name} did not connect")
+        time.sleep(0.2)
+        stop = threading.Event()
+        worker = threading.Thread(target=spin, args=(stop,))
+        mon.stdin.write("start\n")
+        mon.stdin.flush()
+        worker.start()
+        time.sleep(2.0)
+        mon.stdin.write("stop\n")
+        mon.stdin.flush()
+        stop.set()
+        worker.join()
+        return float(mon.stdout.readline())
+    finally:
+        mon.kill()
+        mon.wait(10)
 
 
 def updates_per_change(ctx: Context, name: str, puts: int) -> float:
@@ -182,7 +244,10 @@ def updates_per_change(ctx: Context, name: str, puts: int) -> float:
         seen[0] += 1
         first.set()
 
-    sub = ctx.monitor(name, on_update)
+    # a queue that holds every update: a client that falls behind (here,
+    # its callbacks waiting for the GIL) gets updates squashed into one by
+    # pvAccess; this figure counts what the server sends per change
+    sub = ctx.monitor(name, on_update, request=f"record[queueSize={2 * puts}]")
     first.wait(5)
     time.sleep(0.3)
     before = seen[0]
@@ -319,7 +384,7 @@ def main(ops: int = 300, load: bool = True) -> None:
     greet_type = m.rpc(
         "HELLO.greet", Value(Type([("name", "s")]), {"name": "x"}), timeout=5
     ).type()
-    bare = Bare(process.get(["COUNTER"]), greet_type)
+    bare = Bare(process.get(["COUNTER"]), process.get(["HELLO", "greet"]), greet_type)
     b = client(bare.udp, bare.tcp)
     args = Value(Type([("name", "s")]), {"name": "bench"})
     lines = [
@@ -344,8 +409,8 @@ def main(ops: int = 300, load: bool = True) -> None:
                 fm = timed(lambda n=mine: m.get(n, timeout=5), ops)
                 fb = timed(lambda n=theirs: b.get(n, timeout=5), ops)
             lines.append(row(case, fm * 1e3, fb * 1e3, "<= 1.2x bare", fm <= 1.2 * fb))
-        rm = monitor_rate(m, "COUNTER.counter", served_spin(process))
-        rb = monitor_rate(b, "B.counter", bare_spin(bare))
+        rm = monitor_rate(udp, tcp, "COUNTER.counter", served_spin(process))
+        rb = monitor_rate(bare.udp, bare.tcp, "B.counter", bare_spin(bare))
         lines.append(
             row(
                 "counter increments/s seen by a monitor",
@@ -364,6 +429,7 @@ def main(ops: int = 300, load: bool = True) -> None:
         bare.stop()
         process.call_threadsafe(served.close).result(10)
         tp.stop()
+    compileall.compile_dir(ROOT / "malcolm", quiet=1)
     start = statistics.median(start_to_first_get() for _ in range(3))
     lines.append(
         f"{'process start to first get (s)':<{WIDTH}}{start:>10.3f}{'-':>10}"

@@ -78,6 +78,7 @@ class Process:
         # subscriber sees changes in the order they were made
         self._queue: deque[tuple[Subscription, Any]] = deque()
         self._delivering = False
+        self._hosting_watchers: list[Callable[[], None]] = []
         self.loop: asyncio.AbstractEventLoop | None = None
         self.started = False
 
@@ -96,6 +97,7 @@ class Process:
         controller.process = self
         controller.block.set_listener(self._on_changes)
         controller.block.owner = self.owner
+        self._hosting_changed()
 
     def remove_controller(self, mri: str) -> Controller:
         """Stop hosting ``mri``'s block (stop the controller first if it runs).
@@ -116,7 +118,27 @@ class Process:
             # nothing is queued for it after this: it is off the list
             self._queue.append((sub, [[[]]] if sub.delta else None))
         self._flush()
+        self._hosting_changed()
         return controller
+
+    def watch_hosting(self, callback: Callable[[], None]) -> Callable[[], None]:
+        """Call ``callback()`` after each block added or removed (where
+        :meth:`add_controller`/:meth:`remove_controller` run: on the loop once
+        started); returns a function that stops watching."""
+        self._hosting_watchers.append(callback)
+
+        def unwatch() -> None:
+            if callback in self._hosting_watchers:
+                self._hosting_watchers.remove(callback)
+
+        return unwatch
+
+    def _hosting_changed(self) -> None:
+        for callback in list(self._hosting_watchers):
+            try:
+                callback()
+            except Exception:
+                log.exception("hosting watcher %r raised", callback)
 
     @property
     def mris(self) -> list[str]:

@@ -129,3 +129,68 @@ def test_raw_tcp_connect_and_close_never_wedges_it(served):
         assert ctx.get("FIRST.counter", timeout=5)["value"] == 3.0
     finally:
         idle.close()
+
+
+def test_the_block_list_follows_blocks_added_and_removed(served):
+    from malcolm.io.pva.client_blocklist import add_block_list
+
+    tp, process, server, ctx = served
+    process.call_threadsafe(add_block_list, process).result(10)
+    updates: queue.Queue[object] = queue.Queue()
+    sub = ctx.monitor("localhost.blocks", updates.put, notify_disconnect=True)
+    try:
+        assert list(next_value(updates)["value"]) == ["FIRST"]
+        add_block(process, "LATER")
+        assert list(next_value(updates)["value"]) == ["FIRST", "LATER"]
+        remove_block(process, "FIRST")
+        assert list(next_value(updates)["value"]) == ["LATER"]
+        assert list(ctx.get("localhost.blocks", timeout=5)["value"]) == ["LATER"]
+    finally:
+        sub.close()
+
+
+def test_p4p_is_imported_without_setuptools_which_still_imports_whole():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, malcolm.io.pva\n"
+        "print('setuptools' in sys.modules, 'setuptools_dso' in sys.modules)\n"
+        "import setuptools_dso\n"
+        "print(callable(setuptools_dso.setup), callable(setuptools_dso.find_dso))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "False", "True", "True"]
+
+
+def test_a_released_channel_reuses_its_pv_and_serves_current_values(
+    served, monkeypatch
+):
+    import time
+
+    from p4p.client.thread import Context
+
+    import malcolm.io.pva.server as server_module
+
+    monkeypatch.setattr(server_module, "RELEASE_DELAY", 0.1)
+    tp, process, server, ctx = served
+    conf = ctx.conf()
+    for round_ in range(3):
+        other = Context("pva", conf=conf, useenv=False, nt=False)
+        updates: queue.Queue[object] = queue.Queue()
+        sub = other.monitor("FIRST.counter", updates.put, notify_disconnect=True)
+        assert next_value(updates)["value"] == float(round_)
+        process.call_threadsafe(
+            process.get_block("FIRST").counter.set_value, float(round_ + 1)
+        ).result(5)
+        assert next_value(updates)["value"] == float(round_ + 1)
+        sub.close()
+        other.close()
+        deadline = time.monotonic() + 10
+        while "FIRST.counter" in server.channel_names:
+            assert time.monotonic() < deadline, "the channel was never released"
+            time.sleep(0.05)
+        assert "FIRST.counter" in server._kept  # closed, kept for the next

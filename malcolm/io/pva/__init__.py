@@ -7,6 +7,10 @@
 See docs/pva.md.
 """
 
-from .server import PvaServer, start_pva_server
+from .p4p_import import import_p4p
+
+import_p4p()  # before any module here imports p4p: without setuptools
+
+from .server import PvaServer, start_pva_server  # noqa: E402
 
 __all__ = ["PvaServer", "start_pva_server"]

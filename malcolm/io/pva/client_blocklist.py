@@ -6,8 +6,8 @@ attribute of a block called ``localhost``; ``malcolm ls`` reads it there.
 ``malcolm demo`` do when they serve pvAccess): ``health`` (OK), ``state``
 (always Ready) and ``blocks``, a string array of every other block's mri in
 the process's order, brought up to date when the process starts and
-whenever :meth:`BlockList.refresh` is called (after blocks are added or
-removed at run time).
+whenever a block is added or removed at run time (:func:`add_block_list`
+has the process call :meth:`BlockList.refresh` then).
 
 This is a small piece kept apart from the pvAccess server: the server
 serves it like any block; a process without it makes ``malcolm ls`` say
@@ -48,7 +48,7 @@ class BlockList:
 
     def refresh(self) -> None:
         """Set ``blocks`` to the process's mris (on the process's loop)."""
-        if self.process is None:
+        if self.process is None or self.mri not in self.process.mris:
             return
         mris = tuple(m for m in self.process.mris if m != self.mri)
         if mris != self.blocks.value:
@@ -75,8 +75,9 @@ class BlockList:
 
 def add_block_list(process: Process, mri: str = BLOCK_LIST_MRI) -> BlockList:
     """Add a :class:`BlockList` to ``process`` (before it starts, or on its
-    loop); returns it."""
+    loop); returns it. Its list follows blocks added and removed later."""
     block_list = BlockList(mri)
     process.add_controller(block_list)  # type: ignore[arg-type]
+    process.watch_hosting(block_list.refresh)
     block_list.refresh()
     return block_list

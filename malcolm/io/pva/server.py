@@ -41,6 +41,7 @@ from malcolm.core import (
 from .convert import STRUCTURE, assign, fits, spec_at, to_dict, to_value, type_spec
 from .errlog import route_errlog
 from .results import method_args, result_value, version_tag
+from .setters import Setter, compile_setter
 
 __all__ = ["PvaServer", "start_pva_server"]
 
@@ -61,7 +62,8 @@ class _Channel:
         self.server = server
         self.name = name
         self.path = path  # [mri] or [mri, field]
-        self.pv = SharedPV(handler=self)
+        self.pv, self.handler = server._shared_pv(name)
+        self.handler.chan = self
         self.clients = 0
         self.made = 0  # makeChannel calls, to tell a release is stale
         self.data: Any = None
@@ -69,6 +71,10 @@ class _Channel:
         self.type: Any = None
         self.sub: Any = None
         self.closed = False
+        # change path -> its compiled setter, for self.spec (reset with it)
+        self._setters: dict[tuple[str, ...], Setter] = {}
+        # the block meta and a meta channel go whole: never the fast path
+        self._fast_ok = self.path[1:] != ["meta"]
 
     def prime(self) -> None:
         """Open the PV at once with a snapshot of its path (in p4p's thread:
@@ -123,6 +129,8 @@ class _Channel:
 
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
+            return
+        if self._fast_ok and self.data is not None and self._apply_fast(changes):
             return
         if self.data is None or any(not c[0] and len(c) == 2 for c in changes):
             if changes[-1] == [[]]:
@@ -179,7 +187,35 @@ class _Channel:
                 assign_all(value, data, sub_spec)
         self.pv.post(value)
 
+    def _apply_fast(self, changes: list[list[Any]]) -> bool:
+        """Post ``changes`` if each sets a field whose type it still fits
+        (the common case: a value, its alarm and timeStamp); False, with
+        nothing done, for anything else (deletions, the whole channel, the
+        block's meta, a new shape), which :meth:`_apply` does in full."""
+        value = Value(self.type)
+        block = len(self.path) == 1
+        setters = self._setters
+        for change in changes:
+            if len(change) != 2:
+                return False
+            path = change[0]
+            if not path or (block and path[0] == "meta"):
+                return False
+            key = tuple(path)
+            setter = setters.get(key)
+            if setter is None:
+                sub_spec = spec_at(self.spec, path)
+                if sub_spec is None:
+                    return False
+                setter = setters[key] = compile_setter(sub_spec, ".".join(path))
+            if not setter(value, change[1]):
+                return False
+        self.data = _apply_changes(self.data, changes)
+        self.pv.post(value)
+        return True
+
     def _reopen(self, spec: Any = None) -> None:
+        self._setters.clear()
         self.spec = spec or type_spec(self.data)
         value = to_value(self.data)
         self.type = value.type()
@@ -191,12 +227,19 @@ class _Channel:
         """Let go of the channel if nobody connected to it since ``made``."""
         self.server._forget(self, made)
 
-    def close(self) -> None:
+    def close(self, keep: bool = False) -> None:
+        """Stop following the process; ``keep``: close the PV for reuse (a
+        release), else destroy it (the name is gone or the server stops)."""
         self.closed = True
         if self.sub is not None:
             self.server.process.unsubscribe(self.sub)
             self.sub = None
-        self.pv.close(destroy=True)
+        self.handler.chan = None
+        if keep:
+            self.pv.close()
+            self.server._keep_pv(self.name, self.pv, self.handler)
+        else:
+            self.pv.close(destroy=True)
 
     # ---- p4p handler (called in p4p's threads)
     def onFirstConnect(self, pv: SharedPV) -> None:
@@ -239,8 +282,46 @@ class _Channel:
         mri, method, args = method_args(self.path, op.value(), op.pvRequest())
         process = self.server.process
         result = await process.post([mri, method], args)
-        returns = process.get([mri, method, "meta", "returns"])
-        op.done(result_value(result, returns))
+        op.done(result_value(result, self._returns(mri, method)))
+
+    def _returns(self, mri: str, method: str) -> Any:
+        """The method's ``returns`` meta: from this channel's copy if it
+        holds the method (kept current on the loop), else from the process."""
+        try:
+            if self.path == [mri, method]:
+                return self.data["meta"]["returns"]
+            if self.path == [mri]:
+                return self.data[method]["meta"]["returns"]
+        except (KeyError, TypeError):
+            pass
+        return self.server.process.get([mri, method, "meta", "returns"])
+
+
+class _Handler:
+    """A SharedPV's handler: forwards to the channel now using the PV."""
+
+    def __init__(self) -> None:
+        self.chan: _Channel | None = None
+
+    def onFirstConnect(self, pv: SharedPV) -> None:  # noqa: N802 (p4p's name)
+        if self.chan is not None:
+            self.chan.onFirstConnect(pv)
+
+    def onLastDisconnect(self, pv: SharedPV) -> None:  # noqa: N802
+        if self.chan is not None:
+            self.chan.onLastDisconnect(pv)
+
+    def put(self, pv: SharedPV, op: Any) -> None:
+        if self.chan is None:
+            op.done(error="NotFoundError: the channel is closed")
+        else:
+            self.chan.put(pv, op)
+
+    def rpc(self, pv: SharedPV, op: Any) -> None:
+        if self.chan is None:
+            op.done(error="NotFoundError: the channel is closed")
+        else:
+            self.chan.rpc(pv, op)
 
 
 def _apply_changes(data: Any, changes: list[list[Any]]) -> Any:
@@ -320,6 +401,10 @@ class PvaServer:
         self.conf = dict(conf or {})
         self._lock = threading.Lock()
         self._channels: dict[str, _Channel] = {}
+        # closed SharedPVs of released channels, by name, for reuse: p4p does
+        # not give back all of a destroyed SharedPV's memory, so a name that
+        # is let go and asked for again would grow the server each time
+        self._kept: dict[str, tuple[SharedPV, _Handler]] = {}
         self._provider: DynamicProvider | None = None
         self._server: Server | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -359,8 +444,12 @@ class PvaServer:
         with self._lock:
             channels = list(self._channels.values())
             self._channels.clear()
+            kept = [pv for pv, _ in self._kept.values()]
+            self._kept.clear()
         for chan in channels:
             chan.close()
+        for pv in kept:
+            pv.close(destroy=True)
         for task in list(self._tasks):
             task.cancel()
 
@@ -398,6 +487,21 @@ class PvaServer:
             chan.made += 1
             return chan.pv
 
+    def _shared_pv(self, name: str) -> tuple[SharedPV, _Handler]:
+        """The kept PV of ``name`` (under the lock), or a new one."""
+        kept = self._kept.pop(name, None)
+        if kept is not None:
+            return kept
+        handler = _Handler()
+        return SharedPV(handler=handler), handler
+
+    def _keep_pv(self, name: str, pv: SharedPV, handler: _Handler) -> None:
+        with self._lock:
+            if self._server is not None and name not in self._kept:
+                self._kept[name] = (pv, handler)
+                return
+        pv.close(destroy=True)
+
     def _schedule_release(self, chan: _Channel) -> None:
         made = chan.made
         loop = self._loop
@@ -407,14 +511,15 @@ class PvaServer:
             )
 
     def _forget(self, chan: _Channel, made: int | None = None) -> None:
-        """Drop ``chan``; with ``made``, only if it is still unused since then
-        (checked under the lock makeChannel takes, so no client gets it)."""
+        """Drop ``chan``; with ``made`` (a release), only if it is still
+        unused since then (checked under the lock makeChannel takes, so no
+        client gets it), keeping its PV for the next channel of that name."""
         with self._lock:
             if made is not None and (chan.clients or chan.made != made):
                 return
             if self._channels.get(chan.name) is chan:
                 del self._channels[chan.name]
-        chan.close()
+        chan.close(keep=made is not None and self._server is not None)
 
     def _hand(self, op: Any, coro: Any) -> None:
         """Run an operation on the loop; its error goes back to the client."""

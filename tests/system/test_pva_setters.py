@@ -1,0 +1,81 @@
+"""The compiled setters of monitor updates agree with convert's fits/assign
+on the demo's real structures and on data that no longer fits."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import pytest
+from p4p import Value
+
+from malcolm.demo import demo_process
+from malcolm.io.pva.convert import assign, fits, spec_at, to_value, type_spec
+from malcolm.io.pva.setters import compile_setter
+
+
+@pytest.fixture(scope="module")
+def blocks() -> dict[str, Any]:
+    process = demo_process()
+    return {mri: process.get([mri]) for mri in process.mris}
+
+
+def changed(value: Value) -> dict[str, Any]:
+    return {k: value[k] for k in sorted(value.changedSet())}
+
+
+def both(data: dict[str, Any], path: list[str], new: Any) -> tuple[Any, Any]:
+    """(what fits/assign set, what the compiled setter set); None: no fit."""
+    spec = type_spec(data)
+    sub = spec_at(spec, path)
+    vtype = to_value(data).type()
+    expected = None
+    if fits(sub, new):
+        value = Value(vtype)
+        assign(value, path, new, sub)
+        expected = changed(value)
+    value = Value(vtype)
+    got = changed(value) if compile_setter(sub, ".".join(path))(value, new) else None
+    return expected, got
+
+
+def test_every_field_of_every_demo_block_sets_the_same_leaves(blocks):
+    cases = 0
+    for block in blocks.values():
+        for field, data in block.items():
+            if field in ("typeid", "meta") or not isinstance(data, dict):
+                continue
+            for key, sub in data.items():
+                if key == "typeid":
+                    continue
+                expected, got = both(block, [field, key], copy.deepcopy(sub))
+                assert got == expected, (field, key)
+                assert expected is not None, (field, key)
+                cases += 1
+    assert cases > 50
+
+
+def test_what_no_longer_fits_is_refused_as_fits_does(blocks):
+    counter = blocks["COUNTER"]
+    for path, new in [
+        (["counter", "value"], "text"),  # a string in a double
+        (["counter", "value"], True),  # a bool is not a number here
+        (["counter", "value"], 2),  # an int fits a double
+        (["counter", "timeStamp"], {"typeid": "time_t", "secondsPastEpoch": 1}),
+        (["counter", "alarm"], {"typeid": "other", "severity": 0}),
+        (["counter", "alarm"], [1, 2]),
+    ]:
+        expected, got = both(counter, path, new)
+        assert got == expected, path
+    assert both(counter, ["counter", "value"], "text") == (None, None)
+
+
+def test_a_method_log_value_may_hold_fewer_arguments(blocks):
+    hello = blocks["HELLO"]
+    log = copy.deepcopy(hello["greet"]["took"])
+    log["value"] = {}
+    log["present"] = []
+    expected, got = both(hello, ["greet", "took"], log)
+    assert got == expected is not None
+    log["value"] = {"nobody": "x"}
+    assert both(hello, ["greet", "took"], log) == (None, None)
