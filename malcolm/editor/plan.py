@@ -98,7 +98,7 @@ def records_from_fixed(
             mri, field = manager.resolve(name)
             attr = writeable_attribute(manager, mri, field, name, "fixed")
         except BadValueError as e:
-            problems.append(f"{where}: {e}")
+            problems.append(f"{where}: {str(e).removeprefix(manager.mri + ': ')}")
             continue
         kind = fixed_kind(attr)
         if kind is None:
