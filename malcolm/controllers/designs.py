@@ -44,6 +44,7 @@ class DesignCalls:
         layout: Attribute
         exports: Attribute
         followers: Attribute
+        fixed: Attribute
         model_attr: Attribute
         block: Any
 
@@ -85,6 +86,12 @@ class DesignCalls:
             FIXED_KINDS[p.kind](p.target, plain_value(p.value, p.kind))
             for p in self._of(FixedRuntime)
         ]
+        self.fixed.set_value(
+            [
+                {"name": p.target, "value": plan.fixed_text(p.value, p.kind)}
+                for p in self._of(FixedRuntime)
+            ]
+        )
 
     def _apply_layout(self, palette: list[PalettePart]) -> None:
         # a child the palette leaves out is where a new manager has it, so a
@@ -205,12 +212,23 @@ class DesignCalls:
         exports: list[dict[str, Any]] | None = None,
         followers: list[dict[str, Any]] | None = None,
         layout: list[dict[str, Any]] | None = None,
+        fixed: list[Any] | None = None,
     ) -> None:
-        """Change the tables: the manager goes to Disabled with the new parts."""
+        """Change the tables: the manager goes to Disabled with the new parts.
+
+        ``fixed``: the new fixed records (an attribute both fixed and
+        exported or followed is then refused); else the current ones, less
+        any attribute the edit exports or follows.
+        """
         records = plan.records_from_tables(self, exports, followers)
-        # an attribute now exported or followed is no longer fixed
-        moving = {r.source if isinstance(r, ExportPart) else r.name for r in records}
-        records += [r for r in self.fixed_records if r.name not in moving]
+        if fixed is not None:
+            records += fixed
+        else:
+            # an attribute now exported or followed is no longer fixed
+            moving = {
+                r.source if isinstance(r, ExportPart) else r.name for r in records
+            }
+            records += [r for r in self.fixed_records if r.name not in moving]
         parts = plan.build_parts(self, records)
 
         async def reload() -> None:
@@ -228,6 +246,11 @@ class DesignCalls:
 
     async def put_followers(self, value: dict[str, Any]) -> None:
         await self._edit_tables(followers=tables.rows(value))
+
+    async def put_fixed(self, value: dict[str, Any]) -> None:
+        """Rows ``name`` (CHILD.ATTRIBUTE), ``value`` (JSON text); written on
+        reset, as the manager leaves Disabled."""
+        await self._edit_tables(fixed=plan.records_from_fixed(self, tables.rows(value)))
 
     async def put_layout(self, value: dict[str, Any]) -> None:
         new = tables.rows(value)

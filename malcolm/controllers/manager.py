@@ -2,7 +2,7 @@
 
 The Editor's fields live on the manager's own structure, where pymalcolm
 clients look for them: ``design`` (put = load), ``modified``, ``layout``
-(the palette), ``exports``, ``followers`` and ``model``; methods ``save``,
+(the palette), ``exports``, ``followers``, ``fixed`` and ``model``; methods ``save``,
 ``load``, ``set_visible`` and ``set_position`` (their work is in
 :mod:`.designs`). Each export, follower and fixed row becomes a part
 (``malcolm.editor.runtime``). A followed or fixed child attribute changed
@@ -101,6 +101,7 @@ class ManagerController(DesignCalls, Controller):
         self.layout = self._add_attr("layout", tables.layout_meta())
         self.exports = self._add_attr("exports", tables.exports_meta())
         self.followers = self._add_attr("followers", tables.followers_meta())
+        self.fixed = self._add_attr("fixed", tables.fixed_meta())
         self.model_attr = self._add_attr(
             "model", StringMeta("The model this block conforms to (metaOf)")
         )

@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -32,6 +33,7 @@ from malcolm.editor.runtime import (
     FollowerRuntime,
     RunnableExportRuntime,
     takes_configure_args,
+    writeable_attribute,
 )
 from malcolm.parts.design import (
     DESIGN_KINDS,
@@ -66,6 +68,46 @@ def records_from_tables(
         *(ExportPart(r["name"], r["source"], r.get("description", "")) for r in ex),
         *(FollowerPart(r["name"], r["source"]) for r in fo),
     ]
+
+
+def fixed_text(value: Any, kind: str) -> str:
+    """A fixed row's value as the ``fixed`` table shows it: JSON text."""
+    return json.dumps(plain_value(value, kind))
+
+
+def records_from_fixed(
+    manager: ManagerController, fixed_rows: list[dict[str, Any]]
+) -> list[Any]:
+    """``fixed.<Type>`` records of rows of the ``fixed`` table.
+
+    Each row's kind is its child attribute's (``fixed_kind``); its value is
+    JSON text. BadValueError naming every row that is not JSON or does not
+    name a writeable child attribute; the values are checked by
+    ``build_parts``."""
+    problems: list[str] = []
+    records: list[Any] = []
+    for i, row in enumerate(fixed_rows):
+        name, text = str(row["name"]), str(row["value"])
+        where = f"{manager.mri}.fixed row {i} ({name})"
+        try:
+            value = json.loads(text)
+        except ValueError as e:
+            problems.append(f"{where}: value {text!r} is not JSON ({e})")
+            continue
+        try:
+            mri, field = manager.resolve(name)
+            attr = writeable_attribute(manager, mri, field, name, "fixed")
+        except BadValueError as e:
+            problems.append(f"{where}: {str(e).removeprefix(manager.mri + ': ')}")
+            continue
+        kind = fixed_kind(attr)
+        if kind is None:
+            problems.append(f"{where}: {type(attr.meta).__name__} cannot be fixed")
+            continue
+        records.append(FIXED_KINDS[kind](name, value))
+    if problems:
+        raise BadValueError("\n".join(problems))
+    return records
 
 
 def build_parts(manager: ManagerController, records: list[Any]) -> list[EditorPart]:

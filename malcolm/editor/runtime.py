@@ -328,8 +328,14 @@ class FixedRuntime(EditorPart):
         target = writeable_attribute(
             manager, self.child_mri, self.child_field, name, "fixed"
         )
-        #: the design's value
-        self.value = target.validate(value)
+        try:
+            #: the design's value
+            self.value = target.validate(value)
+        except (BadValueError, TypeError, ValueError) as e:
+            raise BadValueError(
+                f"{manager.mri}: fixed {name}: {target.meta.__class__.__name__}"
+                f" refuses {value!r}: {e}"
+            ) from None
         #: what the row expects now: the design's value, or what the manager
         #: itself gave the child since
         self.expected = self.value

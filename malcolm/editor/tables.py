@@ -53,6 +53,19 @@ def followers_meta() -> TableMeta:
     )
 
 
+def fixed_meta() -> TableMeta:
+    """The Fixed table: ``name`` (CHILD.ATTRIBUTE) and ``value`` as JSON text."""
+    return TableMeta(
+        {
+            "name": StringArrayMeta("CHILD.ATTRIBUTE held fixed", label="Name"),
+            "value": StringArrayMeta("Its value, as JSON text", label="Value"),
+        },
+        "Child attributes held at fixed values (written on load and reset)",
+        tags=("widget:table",),
+        writeable=True,
+    )
+
+
 def rows(table: dict[str, Any]) -> list[dict[str, Any]]:
     """Column-major table value -> list of row dicts."""
     columns = list(table)

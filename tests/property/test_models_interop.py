@@ -60,6 +60,8 @@ PUTS = {
     "exports": ({"Ready"}, None),
     # beyond the interop table: the editor's follower table
     "followers": ({"Ready"}, None),
+    # and its fixed table
+    "fixed": ({"Ready"}, None),
 }
 # Beyond the interop table: validate never moves; disable wherever it can;
 # the editor's calls (load, set_visible, set_position) only in Ready.

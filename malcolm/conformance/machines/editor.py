@@ -20,8 +20,8 @@ NotAllowedError and change nothing):
   template and a missing name (by put of ``design`` or by ``load()``), and
   designs written into the store by another hand (then loadable by name);
 * reset (from fault and disabled) and disable (from ready and fault);
-* edits of the exports, followers and layout tables, valid ones and invalid
-  ones that must be refused with nothing changed.
+* edits of the exports, followers, fixed and layout tables, valid ones and
+  invalid ones that must be refused with nothing changed.
 
 The machine keeps its own model of what the design says, of every child
 value, of the saved designs and of the state (by role), and after every
@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import asyncio
 import copy
+import json
 import re
 import shutil
 import tempfile
@@ -56,6 +57,7 @@ from hypothesis.stateful import (
 )
 
 from malcolm.core import BadValueError, NotAllowedError
+from malcolm.editor.plan import plain_value
 from malcolm.editor.store import DesignStore
 from malcolm.parts.design import (
     load_design,
@@ -194,6 +196,16 @@ class EditorMachine(DesignBook, RuleBasedStateMachine):
 
     def followers_value(self, followers: list[tuple[str, str]]) -> dict[str, Any]:
         return {"name": [t for t, _ in followers], "source": [s for _, s in followers]}
+
+    def fixed_value(self, fixed: dict[str, Any]) -> dict[str, Any]:
+        """The ``fixed`` table of ``{CHILD.ATTRIBUTE: value}``: values as JSON."""
+        return {
+            "name": list(fixed),
+            "value": [
+                json.dumps(plain_value(v, self.fields[d].kind))
+                for d, v in fixed.items()
+            ],
+        }
 
     def layout_rows(self) -> list[dict[str, Any]]:
         return [
@@ -472,6 +484,71 @@ class EditorMachine(DesignBook, RuleBasedStateMachine):
             self.put("followers", self.followers_value(followers)), BadValueError
         )
 
+    def draw_fixed_value(self, data: st.DataObject, dotted: str) -> Any:
+        """A value the child accepts, as its meta holds it."""
+        f = self.fields[dotted]
+        for _ in range(20):
+            try:
+                return f.validate(data.draw(f.values(), "value"))
+            except (BadValueError, TypeError, ValueError):
+                continue
+        return copy.deepcopy(self.values[dotted])
+
+    @precondition(lambda self: self.state == "ready" and bool(self.fields))
+    @rule(data=st.data(), then_reset=st.booleans())
+    def edit_fixed(self, data: st.DataObject, then_reset: bool) -> None:
+        """A put of ``fixed``: a row added, dropped, given another value, or
+        the rows reordered; written to the children on reset."""
+        fixed = dict(self.spec.fixed)
+        free = sorted(set(self.fields) - self.sources() - self.targets() - set(fixed))
+        edits = ["shuffle"]
+        if free:
+            edits.append("add")
+        if fixed:
+            edits += ["remove", "revalue"]
+        edit = data.draw(st.sampled_from(edits), "edit")
+        if edit == "add":
+            dotted = data.draw(st.sampled_from(free), "attribute")
+            fixed[dotted] = self.draw_fixed_value(data, dotted)
+        elif edit == "remove":
+            fixed.pop(data.draw(st.sampled_from(sorted(fixed)), "row"))
+        elif edit == "revalue":
+            dotted = data.draw(st.sampled_from(sorted(fixed)), "row")
+            fixed[dotted] = self.draw_fixed_value(data, dotted)
+        else:
+            order = data.draw(st.permutations(list(fixed)), "order")
+            fixed = {d: fixed[d] for d in order}
+        self.run(self.put("fixed", self.fixed_value(fixed)))
+        self.spec.fixed = fixed
+        self.install()
+        if then_reset:
+            self.reset()
+
+    @precondition(lambda self: self.state == "ready" and bool(self.fields))
+    @rule(data=st.data())
+    def edit_fixed_invalid(self, data: st.DataObject) -> None:
+        value = self.fixed_value(self.spec.fixed)
+        f = self.some_field()
+        child = f.dotted.partition(".")[0]
+        text = json.dumps(plain_value(self.values[f.dotted], f.kind))
+        bad = [
+            (f"NOPE.{f.name}", text),  # no such child
+            (f"{child}.NOPE", text),  # no such attribute
+            (child, text),  # not CHILD.FIELD
+            (f.dotted, "{not json"),  # not JSON
+        ]
+        if self.spec.fixed:  # the same attribute twice
+            bad.append((value["name"][0], value["value"][0]))
+        moving = sorted(self.sources() | self.targets())
+        if moving:  # exported or followed
+            d = moving[0]
+            bad.append(
+                (d, json.dumps(plain_value(self.values[d], self.fields[d].kind)))
+            )
+        name, text = data.draw(st.sampled_from(bad), "row")
+        value = {"name": [*value["name"], name], "value": [*value["value"], text]}
+        self.refused(self.put("fixed", value), BadValueError)
+
     @precondition(lambda self: self.state == "ready" and bool(self.children))
     @rule(data=st.data(), visible=st.booleans(), by_put=st.booleans())
     def set_visible(self, data: st.DataObject, visible: bool, by_put: bool) -> None:
@@ -551,6 +628,7 @@ class EditorMachine(DesignBook, RuleBasedStateMachine):
             "followers": lambda: self.put(
                 "followers", self.followers_value(self.spec.followers)
             ),
+            "fixed": lambda: self.put("fixed", self.fixed_value(self.spec.fixed)),
             "layout": lambda: self.put("layout", self.layout_rows()),
             "set_visible": lambda: self.post(
                 "set_visible", block_name=child, visible=False
@@ -594,6 +672,12 @@ class EditorMachine(DesignBook, RuleBasedStateMachine):
         assert fixed.keys() == self.spec.fixed.keys(), (fixed, self.spec.fixed)
         for d, v in fixed.items():
             assert same(v, self.spec.fixed[d]), (d, v, self.spec.fixed[d])
+        # the fixed table shows the same rows, values as JSON text
+        table = self.rows(m.fixed)
+        assert [r["name"] for r in table] == list(fixed), (table, list(fixed))
+        for r in table:
+            shown = self.fields[r["name"]].validate(json.loads(r["value"]))
+            assert same(shown, self.spec.fixed[r["name"]]), (r, self.spec.fixed)
         for name, source, _ in self.spec.exports:
             assert same(m.block[name].value, self.values[source]), name
         assert m.design.value == self.design_name

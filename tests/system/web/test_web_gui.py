@@ -230,6 +230,42 @@ def test_the_exports_table_is_edited_in_place(page):
     assert served.get(["SCAN", "exports", "value"])["name"] == ["frames"]
 
 
+def test_the_fixed_table_is_edited_in_place(page):
+    """The manager's fixed table: a row added in the GUI is put, the manager
+    goes through Disabled, reset writes the value to the child, and
+    ``modified`` lights; a bad row is refused with its name."""
+    served = page.served
+    open_block(page, "SCAN")
+    fixed = page.locator('[data-attr="fixed"]')
+    expect(fixed.locator("th")).to_have_text(["name", "value"])
+    fixed.get_by_role("button", name="+ row").click()
+    fixed.locator('[data-name="fixed.0.name"]').fill("x.velocity")
+    fixed.locator('[data-name="fixed.0.value"]').fill("50.0")
+    fixed.locator('[data-name="fixed.put"]').click()
+    _until(lambda: served.get(["SCAN", "fixed", "value"])["name"] == ["x.velocity"])
+    assert served.get(["SCAN", "fixed", "value"])["value"] == ["50.0"]
+    page.locator('button[data-method="reset"]').click()
+    expect(page.locator('[data-view="SCAN"] .badge')).to_have_text("Ready")
+    _until(lambda: served.get(["MOTOR:X", "velocity", "value"]) == 50.0)
+    expect(page.locator('[data-attr="modified"] .led')).to_have_class(re.compile("on"))
+    assert served.get(["SCAN", "modified", "value"]) is True
+    # the row is held: another hand's change faults the manager, naming it
+    served.call(lambda: served.process.put(["MOTOR:X", "velocity"], 7.0))
+    expect(page.locator('[data-view="SCAN"] .badge')).to_have_text("Fault")
+    expect(page.locator('[data-view="SCAN"] .health')).to_contain_text("x.velocity")
+    page.locator('button[data-method="reset"]').click()
+    expect(page.locator('[data-view="SCAN"] .badge')).to_have_text("Ready")
+    _until(lambda: served.get(["MOTOR:X", "velocity", "value"]) == 50.0)
+    # a bad row is refused with the reason, and the table is as it was
+    fixed.get_by_role("button", name="+ row").click()
+    fixed.locator('[data-name="fixed.1.name"]').fill("NOPE.velocity")
+    fixed.locator('[data-name="fixed.1.value"]').fill("1")
+    fixed.locator('[data-name="fixed.put"]').click()
+    expect(fixed.locator(".status")).to_contain_text("NOPE.velocity")
+    assert served.get(["SCAN", "fixed", "value"])["name"] == ["x.velocity"]
+    page.shots(page, "fixed")
+
+
 def test_the_gui_connects_again_when_the_server_is_back(page):
     from malcolm.io.web import start_web_server
 
