@@ -17,9 +17,31 @@ recorded boxes of /work/shared/zebra2 (their introspection ships in
 simulated time itself.  What is and is not simulated: docs/zebra2-sim.md.
 """
 
-from .layout import LAYOUTS, Layout, load_layout
-from .server import Zebra2Server, serve_zebra2
-from .simulation import ManualClock, RealClock
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: where each exported name lives; loaded when first used, so that the
+#: command line (which only needs LAYOUTS for sim-zebra2's options) does not
+#: import the server and numpy for every command
+_WHERE = {
+    "LAYOUTS": ".layout",
+    "Layout": ".layout",
+    "load_layout": ".layout",
+    "Zebra2Server": ".server",
+    "serve_zebra2": ".server",
+    "ManualClock": ".simulation",
+    "RealClock": ".simulation",
+}
+
+
+def __getattr__(name: str) -> Any:
+    where = _WHERE.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(where, __name__), name)
+
 
 __all__ = [
     "LAYOUTS",
