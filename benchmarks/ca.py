@@ -196,7 +196,7 @@ def main() -> None:
             " (issue: raw 6.5-8.2k/s)",
         ),
     ]
-    print(render(rows).replace("reference figures from issue 8", "targets: issue 10"))
+    print(render(rows, "targets: issue 10"))
 
 
 if __name__ == "__main__":

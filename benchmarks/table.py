@@ -29,23 +29,25 @@ class Row:
 HEADER = ("case", "measured", "target", "reference", "note")
 
 
-def render(rows: Sequence[Row]) -> str:
-    """The rows as an aligned text table, with the machine's load below."""
+def render(rows: Sequence[Row], source: str = "reference figures from issue 8") -> str:
+    """The rows as an aligned text table, with the machine's load below and
+    ``source``: where the targets and reference figures come from."""
     cells = [HEADER] + [(r.case, r.value, r.target, r.reference, r.note) for r in rows]
     widths = [max(len(c[i]) for c in cells) for i in range(len(HEADER))]
     lines = ["  ".join(c[i].ljust(widths[i]) for i in range(len(HEADER))).rstrip()
              for c in cells]  # fmt: skip
     lines.insert(1, "  ".join("-" * w for w in widths))
-    lines.append(machine_load())
+    lines.append(machine_load(source))
     return "\n".join(lines)
 
 
-def machine_load() -> str:
-    """The load averages and cores, to judge the figures by."""
+def machine_load(source: str = "reference figures from issue 8") -> str:
+    """The load averages and cores, to judge the figures by, and ``source``."""
     one, five, fifteen = os.getloadavg()
+    tail = f"; {source}" if source else ""
     return (
         f"(machine: {os.cpu_count()} cores, load average {one:.2f} {five:.2f}"
-        f" {fifteen:.2f}; reference figures from issue 8)"
+        f" {fifteen:.2f}{tail})"
     )
 
 

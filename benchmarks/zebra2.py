@@ -411,6 +411,6 @@ if __name__ == "__main__":
     arguments = parse()
     proc = start_sim()
     try:
-        print(render(asyncio.run(main(arguments))))
+        print(render(asyncio.run(main(arguments)), "targets: issue 11"))
     finally:
         stop_sim(proc)
