@@ -60,15 +60,7 @@ class CADoubleArrayPart(_NumberPart):
         """Limits, units and precision the channel reports, where the
         definition gave none (the limits bound each element)."""
         assert isinstance(meta, NumberArrayMeta)
-        found: dict[str, Any] = {}
-        if info.limits is not None and not {"limitLow", "limitHigh"} & set(
-            self.display
-        ):
-            found["limitLow"], found["limitHigh"] = info.limits
-        if info.units is not None and "units" not in self.display:
-            found["units"] = info.units
-        if info.precision is not None and "precision" not in self.display:
-            found["precision"] = info.precision
+        found = self.display_from_info(info)
         if not found:
             return None
         return NumberArrayMeta(

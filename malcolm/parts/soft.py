@@ -161,10 +161,9 @@ class _NumberPart(CAPart):
             self.dtype, description, tags, writeable, label, display=self.display
         )
 
-    def meta_from_info(self, meta: Meta, info: ChannelInfo) -> Meta | None:
-        """Limits, units and precision the channel reports, where the
-        definition gave none."""
-        assert isinstance(meta, NumberMeta)
+    def display_from_info(self, info: ChannelInfo) -> dict[str, Any]:
+        """The limits, units and precision ``info`` reports that the
+        definition's ``display`` does not already give."""
         found: dict[str, Any] = {}
         if info.limits is not None and not {"limitLow", "limitHigh"} & set(
             self.display
@@ -174,6 +173,13 @@ class _NumberPart(CAPart):
             found["units"] = info.units
         if info.precision is not None and "precision" not in self.display:
             found["precision"] = info.precision
+        return found
+
+    def meta_from_info(self, meta: Meta, info: ChannelInfo) -> Meta | None:
+        """Limits, units and precision the channel reports, where the
+        definition gave none."""
+        assert isinstance(meta, NumberMeta)
+        found = self.display_from_info(info)
         if not found:
             return None
         display = {**meta.display, **found}
