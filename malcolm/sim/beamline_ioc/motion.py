@@ -20,6 +20,7 @@ and ``AbortProfile``.
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 
 import numpy as np
 from softioc import builder
@@ -148,6 +149,9 @@ class Trajectory:
         )
         self.built: tuple[dict[str, np.ndarray], np.ndarray] | None = None
         self.aborted = False
+        #: called with a point's index each time the trajectory reaches it
+        #: (the way a motion controller's position compare triggers a detector)
+        self.point_listeners: list[Callable[[int], None]] = []
 
     def _build(self, value: int) -> None:
         if not value:
@@ -199,6 +203,8 @@ class Trajectory:
                 for axis, motor in self.axes.items():
                     motor.place(float(positions[axis][i]))
                 self.scanned.set(i + 1)
+                for listener in self.point_listeners:
+                    listener(i)
             self.exec_status.set(1)
         finally:
             self.exec_state.set(0)
