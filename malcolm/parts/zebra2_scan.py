@@ -154,7 +154,8 @@ class Zebra2ScanPart(Part):
 
     # ---- the box
     def _lost(self, e: BaseException) -> MalcolmError:
-        return MalcolmError(f"Zebra2 box {self.address}: {e}")
+        text = str(e).removeprefix(f"{self.address}: ")
+        return MalcolmError(f"Zebra2 box {self.address}: {text}")
 
     async def _control(self) -> ControlClient:
         client = self.control
