@@ -181,10 +181,14 @@ class Zebra2ScanPart(Part):
             if isinstance(reply, Exception):
                 raise self._lost(reply)
 
-    async def _close(self) -> None:
+    async def _close_stream(self) -> None:
+        """Stop reading the data port and close it (and the file)."""
         stream, self.stream = self.stream, None
         if stream is not None:
             await stream.close()
+
+    async def _close(self) -> None:
+        await self._close_stream()
         control, self.control = self.control, None
         if control is not None:
             await control.close()
@@ -225,24 +229,34 @@ class Zebra2ScanPart(Part):
     async def configure(self, task: Task, device: Any) -> None:
         from malcolm.io.zebra2.data import DataClient  # pandablocks: when used
 
-        await self._close()
+        await self._close_stream()
         path, filename = self._file_path(device)
         first, end = 0, int(device.configuredSteps)
-        await self._send(setup_commands(first, end, self._period(device, first)))
         data = DataClient(self.host, self.data_port, True, self.timeout)
-        try:
-            await data.connect()
-        except MalcolmError as e:
-            await data.close()
-            raise self._lost(e) from None
+        # the setup, the data connection and the empty file at once
+        work = [
+            self._send(setup_commands(first, end, self._period(device, first))),
+            self._connect_data(data),
+        ]
         if path:
             meta = {"mri": device.mri, "host": self.address}
-            await asyncio.to_thread(create_scan_file, path, meta)
+            work.append(asyncio.to_thread(create_scan_file, path, meta))
+        outcomes = await asyncio.gather(*work, return_exceptions=True)
+        failed = [o for o in outcomes if isinstance(o, BaseException)]
+        if failed:
+            await data.close()
+            raise failed[0]
         self.path = path
         self.stream = CaptureStream(data, path)
         await self._send(["*PCAP.ARM="])
         prefix = str(device.params.get("formatName") or self.default_name)
         self.datasets.set_value(dataset_rows(prefix, filename))
+
+    async def _connect_data(self, data: Any) -> None:
+        try:
+            await data.connect()
+        except MalcolmError as e:
+            raise self._lost(e) from None
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
@@ -320,7 +334,7 @@ class Zebra2ScanPart(Part):
     @RunnableDevice.Abort
     async def abort(self, task: Task, device: Any) -> None:
         await self._stop()
-        await self._close()
+        await self._close_stream()
 
     @RunnableDevice.Disable
     async def disable(self, task: Task, device: Any) -> None:

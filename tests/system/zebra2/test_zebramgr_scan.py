@@ -125,3 +125,30 @@ def test_a_bad_format_name_is_refused_naming_it(sim, tmp_path, name):
     message, state = asyncio.run(main())
     assert "formatName" in message and repr(name) in message
     assert state == "Ready"
+
+
+def test_a_10000_point_spiral_gives_10000_rows(sim, tmp_path):
+    """At 50 us a point: configure writes no per-point tables (the counter
+    and PCOMP are set by a start, a step and a count) and capture keeps
+    up."""
+    generator = gda.compound(gda.spiral("x", "y", 56.4), duration=50e-6)
+
+    async def main():
+        process = zebra_process(sim)
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            params = {"generator": generator, "fileDir": str(tmp_path)}
+            await process.post([MRI, "configure"], params)
+            total = block.totalSteps.value
+            await process.post([MRI, "run"])
+            return total, block.state.value
+        finally:
+            await process.stop()
+
+    total, state = asyncio.run(main())
+    assert 9900 < total < 10100 and state == "Finished"
+    data = read_elsewhere(tmp_path / "zebra.h5")
+    assert data["uniqueid"] == list(range(1, total + 1))
+    ts = np.array(data["PCAP.TS_TRIG.Value"])
+    np.testing.assert_allclose(np.diff(ts), 50e-6, rtol=1e-3)
