@@ -43,6 +43,8 @@ def test_the_box_killed_mid_run_faults_naming_it_and_reset_recovers(sim, tmp_pat
             still = (block.state.value, block.health.value)
             await loop.run_in_executor(None, sim.start)
             await process.post([MRI, "reset"])
+            # the children's poll finds the box again within a poll or two
+            await wait_for(block, "health", lambda v: v == "OK", timeout=5)
             ready = (block.state.value, block.health.value)
             small = gda.compound(gda.line("x", 12), duration=0.002)
             await process.post([MRI, "configure"], {**params, "generator": small})

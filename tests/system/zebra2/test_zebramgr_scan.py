@@ -13,7 +13,7 @@ import pytest
 from malcolm.core import MalcolmError
 from malcolm.scan import gda
 
-from .zebramgr import MRI, read_elsewhere, zebra_process
+from .zebramgr import MRI, read_elsewhere, wait_for, zebra_process
 
 
 def test_a_line_gives_one_row_per_point_with_its_uniqueid(sim, tmp_path):
@@ -152,3 +152,31 @@ def test_a_10000_point_spiral_gives_10000_rows(sim, tmp_path):
     assert data["uniqueid"] == list(range(1, total + 1))
     ts = np.array(data["PCAP.TS_TRIG.Value"])
     np.testing.assert_allclose(np.diff(ts), 50e-6, rtol=1e-3)
+
+
+def test_the_children_show_what_configure_set_up(sim, tmp_path):
+    """The box's blocks are the manager's children (zebra2.Manager): within
+    a poll they show the position compare the scan set and its wiring."""
+
+    async def main():
+        process = zebra_process(sim, poll_period=0.05)
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            generator = gda.compound(gda.line("x", 33), duration=0.01)
+            await process.post([MRI, "configure"], {"generator": generator})
+            pcomp = process.get_block(f"{MRI}:PCOMP1")
+            await wait_for(pcomp, "PULSES", lambda v: v == 33, timeout=5)
+            wiring = await wait_for(
+                block, "wiring", lambda v: "PCAP.TRIG" in list(v["sink"]), timeout=5
+            )
+            sources = dict(zip(wiring["sink"], wiring["source"]))
+            return pcomp.INP.value, pcomp.START.value, sources
+        finally:
+            await process.stop()
+
+    inp, start, sources = asyncio.run(main())
+    assert (inp, start) == ("COUNTER1.OUT", 2)
+    assert sources["PCAP.TRIG"] == "PCOMP1.OUT"
+    assert sources["PCAP.ENABLE"] == "PCOMP1.ACTIVE"
+    assert sources["COUNTER1.TRIG"] == "CLOCK1.OUT"
