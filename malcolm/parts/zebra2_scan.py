@@ -46,11 +46,12 @@ from malcolm.io.zebra2 import (
 )
 
 from .base import Part, PartRegistrar
-from .zebra2_scan_capture import CaptureStream, Experiment
-from .zebra2_scan_file import create_scan_file, dataset_rows, datasets_meta
+from .zebra2_scan_datasets import dataset_rows, datasets_meta
 
 if TYPE_CHECKING:
     from malcolm.hooks import Task
+
+    from .zebra2_scan_capture import CaptureStream, Experiment
 
 __all__ = ["Zebra2ScanPart", "run_commands", "setup_commands"]
 
@@ -227,7 +228,11 @@ class Zebra2ScanPart(Part):
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
-        from malcolm.io.zebra2.data import DataClient  # pandablocks: when used
+        # pandablocks, h5py and numpy: when a scan is first configured
+        from malcolm.io.zebra2.data import DataClient
+
+        from .zebra2_scan_capture import CaptureStream
+        from .zebra2_scan_file import create_scan_file
 
         await self._close_stream()
         path, filename = self._file_path(device)
