@@ -188,6 +188,15 @@ class Zebra2ScanPart(Part):
         if stream is not None:
             await stream.close()
 
+    async def close(self) -> None:
+        """Disarm and let go of the box (the process closes this at stop)."""
+        await self._stop()
+        await self._close()
+
+    def _closed_with(self, task: Task) -> None:
+        """Have the process close this part's connections when it stops."""
+        task.process.backends[f"zebra2.Scan {self.address} {id(self)}"] = self
+
     async def _close(self) -> None:
         await self._close_stream()
         control, self.control = self.control, None
@@ -234,6 +243,7 @@ class Zebra2ScanPart(Part):
         from .zebra2_scan_capture import CaptureStream
         from .zebra2_scan_file import create_scan_file
 
+        self._closed_with(task)
         await self._close_stream()
         path, filename = self._file_path(device)
         first, end = 0, int(device.configuredSteps)
