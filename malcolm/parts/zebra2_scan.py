@@ -233,6 +233,11 @@ class Zebra2ScanPart(Part):
             raise BadValueError(
                 f"{device.mri}.configure.formatName: {name!r} is not a file name"
             )
+        file_dir = str(device.params.get("fileDir") or "")
+        if file_dir and os.path.exists(file_dir) and not os.path.isdir(file_dir):
+            raise BadValueError(
+                f"{device.mri}.configure.fileDir: {file_dir!r} is not a directory"
+            )
         return {}
 
     @RunnableDevice.Configure

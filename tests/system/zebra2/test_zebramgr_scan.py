@@ -127,6 +127,28 @@ def test_a_bad_format_name_is_refused_naming_it(sim, tmp_path, name):
     assert state == "Ready"
 
 
+def test_a_file_dir_that_is_a_file_is_refused_naming_it(sim, tmp_path):
+    not_dir = tmp_path / "plain"
+    not_dir.write_text("x")
+
+    async def main():
+        process = zebra_process(sim)
+        await process.start()
+        try:
+            generator = gda.compound(gda.line("x", 3), duration=0.01)
+            params = {"generator": generator, "fileDir": str(not_dir)}
+            with pytest.raises(MalcolmError) as e:
+                await process.post([MRI, "configure"], params)
+            return str(e.value), process.get_block(MRI).state.value
+        finally:
+            await process.stop()
+
+    message, state = asyncio.run(main())
+    assert "fileDir" in message and repr(str(not_dir)) in message
+    assert state == "Ready"
+    assert not_dir.read_text() == "x"
+
+
 def test_a_10000_point_spiral_gives_10000_rows(sim, tmp_path):
     """At 50 us a point: configure writes no per-point tables (the counter
     and PCOMP are set by a start, a step and a count) and capture keeps
