@@ -13,8 +13,9 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
   ``returned`` there before answering; a put that checks the number and
   posts it with a timeStamp to the field's and the block's channels.
 - one p4p client Context each; each figure is the median of ``--ops``
-  round trips: a method call (HELLO.greet), a put of COUNTER.counter, a
-  get of it, a get of the whole COUNTER block;
+  round trips, served and bare in alternating rounds (the machine's load
+  changes weigh on both): a method call (HELLO.greet), a put of
+  COUNTER.counter, a get of it, a get of the whole COUNTER block;
 - counter increments a second seen by a monitor: the value set as fast as
   the server side can for 2 s (on the process's loop; bare: a thread
   posting), counting the updates of a monitor in a process of its own;
@@ -162,16 +163,24 @@ class Bare:
         self.server.stop()
 
 
-def timed(func: Callable[[], Any], ops: int) -> float:
-    """Median seconds of ``func()`` over ``ops`` calls (after 20 warm-ups)."""
+def timed(
+    mine: Callable[[], Any], theirs: Callable[[], Any], ops: int, rounds: int = 10
+) -> tuple[float, float]:
+    """Median seconds of ``mine()`` and of ``theirs()`` over ``ops`` calls
+    each (after 20 warm-ups), in ``rounds`` alternating rounds: a machine
+    whose load changes during the run (shared here) weighs on both alike."""
     for _ in range(20):
-        func()
-    times = []
-    for _ in range(ops):
-        t0 = time.perf_counter()
-        func()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        mine()
+        theirs()
+    times: tuple[list[float], list[float]] = ([], [])
+    per_round = max(1, ops // rounds)
+    for _ in range(rounds):
+        for func, out in ((mine, times[0]), (theirs, times[1])):
+            for _ in range(per_round):
+                t0 = time.perf_counter()
+                func()
+                out.append(time.perf_counter() - t0)
+    return statistics.median(times[0]), statistics.median(times[1])
 
 
 # the monitor of monitor_rate, in a process of its own (see monitor_rate)
@@ -400,14 +409,23 @@ def main(ops: int = 300, load: bool = True) -> None:
         ]
         for case, mine, theirs, kind in pairs:
             if kind == "call":
-                fm = timed(lambda n=mine: m.rpc(n, args, timeout=5), ops)
-                fb = timed(lambda n=theirs: b.rpc(n, args, timeout=5), ops)
+                fm, fb = timed(
+                    lambda n=mine: m.rpc(n, args, timeout=5),
+                    lambda n=theirs: b.rpc(n, args, timeout=5),
+                    ops,
+                )
             elif kind == "put":
-                fm = timed(lambda n=mine: m.put(n, 3.0, timeout=5), ops)
-                fb = timed(lambda n=theirs: b.put(n, 3.0, timeout=5), ops)
+                fm, fb = timed(
+                    lambda n=mine: m.put(n, 3.0, timeout=5),
+                    lambda n=theirs: b.put(n, 3.0, timeout=5),
+                    ops,
+                )
             else:
-                fm = timed(lambda n=mine: m.get(n, timeout=5), ops)
-                fb = timed(lambda n=theirs: b.get(n, timeout=5), ops)
+                fm, fb = timed(
+                    lambda n=mine: m.get(n, timeout=5),
+                    lambda n=theirs: b.get(n, timeout=5),
+                    ops,
+                )
             lines.append(row(case, fm * 1e3, fb * 1e3, "<= 1.2x bare", fm <= 1.2 * fb))
         rm = monitor_rate(udp, tcp, "COUNTER.counter", served_spin(process))
         rb = monitor_rate(bare.udp, bare.tcp, "B.counter", bare_spin(bare))
