@@ -17,8 +17,9 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
   changes weigh on both): a method call (HELLO.greet), a put of
   COUNTER.counter, a get of it, a get of the whole COUNTER block;
 - counter increments a second seen by a monitor: the value set as fast as
-  the server side can for 2 s (on the process's loop; bare: a thread
-  posting), counting the updates of a monitor in a process of its own;
+  the server side can (on the process's loop; bare: a thread posting),
+  counting the updates of a monitor in a process of its own; served and
+  bare take turns, 6 rounds of 0.5 s each;
 - monitor updates per change: puts one after another, updates counted (by
   a monitor whose queue holds them all, so none is squashed client-side);
 - start to first get: ``python -m malcolm demo --pva-port P`` launched
@@ -185,7 +186,9 @@ def timed(
     return statistics.median(times[0]), statistics.median(times[1])
 
 
-# the monitor of monitor_rate, in a process of its own (see monitor_rate)
+# the monitor of monitor_rates, in a process of its own (see monitor_rates):
+# each "start" line begins a count, each "stop" ends it and prints
+# "<updates> <seconds>"; an empty line ends it
 MONITOR = """
 import sys, threading, time
 from p4p.client.thread import Context
@@ -201,50 +204,66 @@ def on_update(_value):
 sub = ctx.monitor(name, on_update)
 first.wait(10)
 print("ready", flush=True)
-sys.stdin.readline()
-before, t0 = seen[0], time.perf_counter()
-sys.stdin.readline()
-print((seen[0] - before) / (time.perf_counter() - t0), flush=True)
+while sys.stdin.readline().strip() == "start":
+    before, t0 = seen[0], time.perf_counter()
+    sys.stdin.readline()
+    print(seen[0] - before, time.perf_counter() - t0, flush=True)
 sub.close()
 ctx.close()
 """
 
+Spin = Callable[[threading.Event], None]
 
-def monitor_rate(
-    udp: int, tcp: int, name: str, spin: Callable[[threading.Event], None]
-) -> float:
-    """Updates a second a monitor of ``name`` sees while ``spin`` sets it.
 
-    The monitor is a client in a process of its own, as GDA is: in the
+def monitor_rates(
+    sides: list[tuple[int, int, str, Spin]], rounds: int = 6, seconds: float = 0.5
+) -> list[float]:
+    """Updates a second a monitor of each side's name sees while its ``spin``
+    sets it, the sides taking turns for ``rounds`` rounds of ``seconds``
+    (a machine whose load changes weighs on both alike).
+
+    Each monitor is a client in a process of its own, as GDA is: in the
     server's process its callbacks would compete for the GIL with the
     thread that sets the counter, and it would count how often it got the
     GIL (the updates it misses are squashed into the next by pvAccess's
     queue), not what the server sends."""
-    mon = subprocess.Popen(
-        [sys.executable, "-c", MONITOR, str(udp), str(tcp), name],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    assert mon.stdin is not None and mon.stdout is not None
+    monitors = []
     try:
-        if mon.stdout.readline().strip() != "ready":
-            raise RuntimeError(f"the monitor of {name} did not connect")
+        for udp, tcp, name, _ in sides:
+            mon = subprocess.Popen(
+                [sys.executable, "-c", MONITOR, str(udp), str(tcp), name],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                text=True,
+            )
+            monitors.append(mon)
+            assert mon.stdin is not None and mon.stdout is not None
+            if mon.stdout.readline().strip() != "ready":
+                raise RuntimeError(f"the monitor of {name} did not connect")
         time.sleep(0.2)
-        stop = threading.Event()
-        worker = threading.Thread(target=spin, args=(stop,))
-        mon.stdin.write("start\n")
-        mon.stdin.flush()
-        worker.start()
-        time.sleep(2.0)
-        mon.stdin.write("stop\n")
-        mon.stdin.flush()
-        stop.set()
-        worker.join()
-        return float(mon.stdout.readline())
+        counts = [[0.0, 0.0] for _ in sides]
+        for _ in range(rounds):
+            for (_, _, _, spin), mon, count in zip(sides, monitors, counts):
+                assert mon.stdin is not None and mon.stdout is not None
+                stop = threading.Event()
+                worker = threading.Thread(target=spin, args=(stop,))
+                mon.stdin.write("start\n")
+                mon.stdin.flush()
+                worker.start()
+                time.sleep(seconds)
+                mon.stdin.write("stop\n")
+                mon.stdin.flush()
+                stop.set()
+                worker.join()
+                seen, took = mon.stdout.readline().split()
+                count[0] += float(seen)
+                count[1] += float(took)
+                time.sleep(0.05)  # the last updates drain
+        return [seen / took for seen, took in counts]
     finally:
-        mon.kill()
-        mon.wait(10)
+        for mon in monitors:
+            mon.kill()
+            mon.wait(10)
 
 
 def updates_per_change(ctx: Context, name: str, puts: int) -> float:
@@ -269,7 +288,7 @@ def updates_per_change(ctx: Context, name: str, puts: int) -> float:
     return (seen[0] - before) / puts
 
 
-def served_spin(process: Any) -> Callable[[threading.Event], None]:
+def served_spin(process: Any) -> Spin:
     block = process.get_block("COUNTER")
 
     async def spin(stop: threading.Event) -> None:
@@ -283,7 +302,7 @@ def served_spin(process: Any) -> Callable[[threading.Event], None]:
     return lambda stop: process.call_threadsafe(spin, stop).result()
 
 
-def bare_spin(bare: Bare) -> Callable[[threading.Event], None]:
+def bare_spin(bare: Bare) -> Spin:
     def spin(stop: threading.Event) -> None:
         n = 0
         while not stop.is_set():
@@ -432,8 +451,12 @@ def main(ops: int = 300, load: bool = True) -> None:
                     ops,
                 )
             lines.append(row(case, fm * 1e3, fb * 1e3, "<= 1.2x bare", fm <= 1.2 * fb))
-        rm = monitor_rate(udp, tcp, "COUNTER.counter", served_spin(process))
-        rb = monitor_rate(bare.udp, bare.tcp, "B.counter", bare_spin(bare))
+        rm, rb = monitor_rates(
+            [
+                (udp, tcp, "COUNTER.counter", served_spin(process)),
+                (bare.udp, bare.tcp, "B.counter", bare_spin(bare)),
+            ]
+        )
         lines.append(
             row(
                 "counter increments/s seen by a monitor",

@@ -126,6 +126,8 @@ class _Channel:
         if isinstance(meta, dict):
             tags = list(meta.get("tags") or [])
             if not any(str(t).startswith("version:") for t in tags):
+                if meta is not data:  # maybe the process's own: a copy
+                    data["meta"] = meta = dict(meta)
                 meta["tags"] = [*tags, version_tag()]
         return data
 
@@ -150,7 +152,9 @@ class _Channel:
                 self.server._forget(self)
                 return
             before = self.data
-            self.data = self._tagged(apply_changes(self.data, changes))
+            # a copy: its dicts may be ones the process gave (never changed)
+            own = copy.deepcopy(before) if before is not None else None
+            self.data = self._tagged(apply_changes(own, changes))
             if before is not None and self.pv.isOpen():
                 if self.data == before:
                     return  # the snapshot opened with was already current
@@ -339,25 +343,20 @@ class _Handler:
 
 
 def _apply_changes(data: Any, changes: list[list[Any]]) -> Any:
-    """:func:`malcolm.core.apply_changes` for changes below the root, copying
-    only dicts (the only values changed in place later)."""
+    """:func:`malcolm.core.apply_changes` for changes below the root, without
+    copying what a change brings: each dict on a change's path is copied
+    before it is changed, so a value kept as the process gave it (and gave
+    every other subscriber) is never changed in place. ``data``, the
+    channel's own, is changed in place."""
     for change in changes:
         *parents, last = change[0]
         target = data
         for key in parents:
-            target = target[key]
+            target[key] = target = dict(target[key])
         if len(change) == 1:
             del target[last]
         else:
-            new = change[1]
-            target[last] = _copy_dicts(new) if isinstance(new, dict) else new
-    return data
-
-
-def _copy_dicts(data: Any) -> Any:
-    """A copy of the dicts in ``data`` (what is later changed in place)."""
-    if isinstance(data, dict):
-        return {k: _copy_dicts(v) for k, v in data.items()}
+            target[last] = change[1]
     return data
 
 
