@@ -12,6 +12,10 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
   method's structure that, as a served call does, posts ``took`` and
   ``returned`` there before answering; a put that checks the number and
   posts it with a timeStamp to the field's and the block's channels.
+- the floor of the call and put ratios: the bare server again (names L.*)
+  whose handlers hand the same work to the process's idle loop and answer
+  there, as any server that keeps its state on an asyncio loop must: what
+  the hop from p4p's thread to the loop costs, with none of malcolm's work;
 - one p4p client Context each; each figure is the median of ``--ops``
   round trips, served and bare in alternating rounds (the machine's load
   changes weigh on both): a method call (HELLO.greet), a put of
@@ -97,11 +101,22 @@ def now_stamp() -> dict[str, int]:
 
 
 class Bare:
-    """A bare p4p server doing what the served demo does, on names B.*"""
+    """A bare p4p server doing what the served demo does, on names B.*
+
+    With ``loop``, its put and rpc handlers hand the same work to that
+    asyncio loop (``loop.call_soon_threadsafe``) and answer there: what any
+    server that changes its state on a loop only pays, with none of
+    malcolm's work (the floor of the round-trip ratios)."""
 
     def __init__(
-        self, block: dict[str, Any], greet: dict[str, Any], greet_type: Type
+        self,
+        block: dict[str, Any],
+        greet: dict[str, Any],
+        greet_type: Type,
+        prefix: str = "B",
+        loop: asyncio.AbstractEventLoop | None = None,
     ) -> None:
+        self.loop = loop
         self.counter_type = to_value(block["counter"]).type()
         self.counter = SharedPV(handler=self, initial=to_value(block["counter"]))
         self.block = SharedPV(initial=to_value(block))
@@ -111,10 +126,10 @@ class Bare:
         self.greet = SharedPV(handler=self, initial=to_value(greet))
         self.greet_type = greet_type
         udp = free_port(socket.SOCK_DGRAM)
-        provider = StaticProvider("bare")
-        provider.add("B.counter", self.counter)
-        provider.add("B", self.block)
-        provider.add("B.greet", self.greet)
+        provider = StaticProvider(f"bare-{prefix}")
+        provider.add(f"{prefix}.counter", self.counter)
+        provider.add(prefix, self.block)
+        provider.add(f"{prefix}.greet", self.greet)
         conf = {**server_conf(udp), "EPICS_PVAS_SERVER_PORT": "0"}
         self.server = Server(providers=[provider], conf=conf, useenv=False)
         self.tcp = int(self.server.conf()["EPICS_PVAS_SERVER_PORT"])
@@ -122,6 +137,12 @@ class Bare:
         self.provider = provider
 
     def put(self, pv: SharedPV, op: Any) -> None:
+        if self.loop is not None:  # the floor: answered on the loop
+            self.loop.call_soon_threadsafe(self.do_put, pv, op)
+        else:
+            self.do_put(pv, op)
+
+    def do_put(self, pv: SharedPV, op: Any) -> None:
         try:
             number = float(op.value()["value"])
         except (TypeError, ValueError) as e:
@@ -144,6 +165,12 @@ class Bare:
         self.block.post(whole)
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
+        if self.loop is not None:
+            self.loop.call_soon_threadsafe(self.do_rpc, pv, op)
+        else:
+            self.do_rpc(pv, op)
+
+    def do_rpc(self, pv: SharedPV, op: Any) -> None:
         """As a served method call: its channel gets ``took`` (the arguments,
         defaults filled) then ``returned``, each a MethodLog update."""
         name = op.value()["name"]
@@ -166,24 +193,22 @@ class Bare:
         self.server.stop()
 
 
-def timed(
-    mine: Callable[[], Any], theirs: Callable[[], Any], ops: int, rounds: int = 10
-) -> tuple[float, float]:
-    """Median seconds of ``mine()`` and of ``theirs()`` over ``ops`` calls
-    each (after 20 warm-ups), in ``rounds`` alternating rounds: a machine
-    whose load changes during the run (shared here) weighs on both alike."""
+def timed(funcs: list[Callable[[], Any]], ops: int, rounds: int = 10) -> list[float]:
+    """Median seconds of each of ``funcs`` over ``ops`` calls each (after 20
+    warm-ups), in ``rounds`` rounds taking turns: a machine whose load
+    changes during the run (shared here) weighs on all alike."""
     for _ in range(20):
-        mine()
-        theirs()
-    times: tuple[list[float], list[float]] = ([], [])
+        for func in funcs:
+            func()
+    times: list[list[float]] = [[] for _ in funcs]
     per_round = max(1, ops // rounds)
     for _ in range(rounds):
-        for func, out in ((mine, times[0]), (theirs, times[1])):
+        for func, out in zip(funcs, times):
             for _ in range(per_round):
                 t0 = time.perf_counter()
                 func()
                 out.append(time.perf_counter() - t0)
-    return statistics.median(times[0]), statistics.median(times[1])
+    return [statistics.median(t) for t in times]
 
 
 # the monitor of monitor_rates, in a process of its own (see monitor_rates):
@@ -417,8 +442,11 @@ def main(ops: int = 300, load: bool = True) -> None:
     greet_type = m.rpc(
         "HELLO.greet", Value(Type([("name", "s")]), {"name": "x"}), timeout=5
     ).type()
-    bare = Bare(process.get(["COUNTER"]), process.get(["HELLO", "greet"]), greet_type)
+    structures = (process.get(["COUNTER"]), process.get(["HELLO", "greet"]))
+    bare = Bare(*structures, greet_type)
     b = client(bare.udp, bare.tcp)
+    floor = Bare(*structures, greet_type, prefix="L", loop=process.loop)
+    f = client(floor.udp, floor.tcp)
     args = Value(Type([("name", "s")]), {"name": "bench"})
     lines = [
         f"{'figure':<{WIDTH}}{'malcolm':>10}{'bare':>10}{'ratio':>8}  "
@@ -432,25 +460,29 @@ def main(ops: int = 300, load: bool = True) -> None:
             ("get of a whole block (ms)", "COUNTER", "B", "get"),
         ]
         for case, mine, theirs, kind in pairs:
+            names = [mine, theirs, theirs.replace("B", "L", 1)]
             if kind == "call":
-                fm, fb = timed(
-                    lambda n=mine: m.rpc(n, args, timeout=5),
-                    lambda n=theirs: b.rpc(n, args, timeout=5),
-                    ops,
-                )
+                funcs = [
+                    lambda c=c, n=n: c.rpc(n, args, timeout=5)
+                    for c, n in zip((m, b, f), names)
+                ]
             elif kind == "put":
-                fm, fb = timed(
-                    lambda n=mine: m.put(n, 3.0, timeout=5),
-                    lambda n=theirs: b.put(n, 3.0, timeout=5),
-                    ops,
-                )
+                funcs = [
+                    lambda c=c, n=n: c.put(n, 3.0, timeout=5)
+                    for c, n in zip((m, b, f), names)
+                ]
             else:
-                fm, fb = timed(
-                    lambda n=mine: m.get(n, timeout=5),
-                    lambda n=theirs: b.get(n, timeout=5),
-                    ops,
-                )
+                funcs = [
+                    lambda c=c, n=n: c.get(n, timeout=5) for c, n in zip((m, b), names)
+                ]
+            fm, fb, *fl = timed(funcs, ops)
             lines.append(row(case, fm * 1e3, fb * 1e3, "<= 1.2x bare", fm <= 1.2 * fb))
+            if fl:
+                case = "  bare, answered on an asyncio loop"
+                lines.append(
+                    f"{case:<{WIDTH}}{fl[0] * 1e3:>10.4g}{fb * 1e3:>10.4g}"
+                    f"{fl[0] / fb:>8.2f}  {'(the floor)':<16}-"
+                )
         rm, rb = monitor_rates(
             [
                 (udp, tcp, "COUNTER.counter", served_spin(process)),
@@ -472,7 +504,9 @@ def main(ops: int = 300, load: bool = True) -> None:
     finally:
         m.close()
         b.close()
+        f.close()
         bare.stop()
+        floor.stop()
         process.call_threadsafe(served.close).result(10)
         tp.stop()
     compileall.compile_dir(ROOT / "malcolm", quiet=1)
