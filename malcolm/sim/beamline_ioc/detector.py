@@ -90,6 +90,9 @@ class Detector(Stoppable):
         self.triggers = 0  # External triggers not yet made into frames
         self.triggered = asyncio.Event()
 
+    def wake(self) -> None:
+        self.triggered.set()
+
     @staticmethod
     def _choice(name: str, *labels: str) -> Any:
         readback = builder.mbbIn(f"{name}_RBV", *labels, initial_value=0)

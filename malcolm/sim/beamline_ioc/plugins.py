@@ -92,6 +92,10 @@ class Stoppable:
     def _on_stop(self, value: int) -> None:
         if value:
             self._stop = True
+            self.wake()
+
+    def wake(self) -> None:
+        """Wake the busy put's loop so that it sees the stop now."""
 
     def started(self) -> None:
         self._stop = False
@@ -138,6 +142,9 @@ class PositionPlugin(Stoppable):
             always_update=True,
         )
         self.emptied = asyncio.Event()
+
+    def wake(self) -> None:
+        self.emptied.set()
 
     def _delete(self, value: int) -> None:
         if value:
@@ -230,6 +237,9 @@ class HDFWriter(Stoppable):
         self.filename = ""
         self.capturing = False
         self.done = asyncio.Event()
+
+    def wake(self) -> None:
+        self.done.set()
 
     def _fail(self, message: str) -> None:
         self.status.set(1)
