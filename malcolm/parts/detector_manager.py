@@ -180,7 +180,7 @@ class DetectorManagerPart(Part):
 
     # ---- errors
     def _lost(self, task: Task) -> str:
-        """The children whose health is not OK, with it."""
+        """The children whose health is not OK, each with its first problem."""
         bad = []
         for mri in self.mris.values():
             try:
@@ -188,8 +188,10 @@ class DetectorManagerPart(Part):
             except LookupError:
                 health = "no such block"
             if health != "OK":
-                bad.append(f"{mri}: {health}")
-        return "; ".join(bad)
+                problems = str(health).split("; ")
+                more = f" and {len(problems) - 1} more" if len(problems) > 1 else ""
+                bad.append(f"{mri} ({problems[0]}{more})")
+        return ", ".join(bad)
 
     def _failed(self, task: Task, e: Exception) -> MalcolmError:
         lost = self._lost(task)
