@@ -231,17 +231,19 @@ class DetectorManagerPart(Part):
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
         try:
-            await self._stop_all(task)
+            if self._armed or self._busy or self.drv.detectorState.value != "Idle":
+                await self._stop_all(task)
             file_dir = str(device.params.get("fileDir") or "")
             name = str(device.params.get("formatName") or "")
             self._file = f"{name}.h5" if file_dir else ""
-            await self._setup(task, device, file_dir, name)
+            settings = self._settings(device, file_dir, name)
             self._show_datasets(name)
-            await self._arm(task, device, 0, device.configuredSteps, fresh=True)
+            await self._arm(task, 0, device.configuredSteps, True, settings)
         except ChannelError as e:
             raise self._failed(task, e) from e
 
-    async def _setup(self, task: Task, device: Any, file_dir: str, name: str) -> None:
+    def _settings(self, device: Any, file_dir: str, name: str) -> dict[Any, Any]:
+        """The driver's and writer's settings for the scan."""
         drv, hdf = self.drv, self.hdf
         exposure = max(self._exposure(device, 0), MIN_EXPOSURE)
         puts = {
@@ -250,6 +252,7 @@ class DetectorManagerPart(Part):
             drv.imageMode: "Multiple",
             drv.triggerMode: self.trigger_mode.value,
             drv.arrayCallbacks: True,
+            hdf.enableCallbacks: bool(file_dir),
         }
         if file_dir:
             puts.update(
@@ -257,12 +260,24 @@ class DetectorManagerPart(Part):
                     hdf.filePath: file_dir.rstrip("/") + "/",
                     hdf.fileName: name,
                     hdf.fileTemplate: "%s%s.h5",
-                    hdf.enableCallbacks: True,
                 }
             )
-        else:
-            puts[hdf.enableCallbacks] = False
-        await task.put(puts)
+        return puts
+
+    @staticmethod
+    def _changed(puts: dict[Any, Any]) -> dict[Any, Any]:
+        """The settings the children do not hold already (each put is a CA
+        round trip)."""
+        changed = {}
+        for view, value in puts.items():
+            now = view.value
+            if isinstance(value, float) and isinstance(now, float):
+                same = abs(now - value) <= 1e-9 * max(1.0, abs(value))
+            else:
+                same = now == value
+            if not same:
+                changed[view] = value
+        return changed
 
     def _show_datasets(self, name: str) -> None:
         rows = []
@@ -288,10 +303,18 @@ class DetectorManagerPart(Part):
             self._loaded = stop
 
     async def _arm(
-        self, task: Task, device: Any, start: int, end: int, fresh: bool
+        self,
+        task: Task,
+        start: int,
+        end: int,
+        fresh: bool = False,
+        settings: dict[Any, Any] | None = None,
     ) -> None:
         """Make the children wait for the frames of points ``start..end-1``:
-        plugins first, then (External) the driver."""
+        plugins first, then (External) the driver. A ``fresh`` file is made
+        at once (so a bad fileDir shows now); otherwise the writer appends
+        to the file, opening it at the first frame (so it stays closed while
+        the scan is paused or between runs)."""
         self._armed = False
         self._busy = []
         self._end = end
@@ -300,8 +323,8 @@ class DetectorManagerPart(Part):
             return
         drv, pos, hdf = self.drv, self.pos, self.hdf
         puts = {
+            **(settings or {}),
             drv.numImages: frames,
-            pos.delete: True,
             pos.idStart: start + 1,
             pos.enableCallbacks: True,
         }
@@ -309,7 +332,7 @@ class DetectorManagerPart(Part):
             puts.update(
                 {hdf.numCapture: frames, hdf.append: not fresh, hdf.lazyOpen: not fresh}
             )
-        await task.put(puts)
+        await task.put({pos.delete: True, **self._changed(puts)})
         self._loaded = start
         await self._load(task, min(end, start + self.preload))
         waits = [task.when_matches(pos.running, True, timeout=SETTLE_TIMEOUT)]
@@ -389,7 +412,7 @@ class DetectorManagerPart(Part):
         start, end = int(device.completedSteps), int(device.configuredSteps)
         try:
             if not self._armed:
-                await self._arm(task, device, start, end, fresh=False)
+                await self._arm(task, start, end)
             busy = list(self._busy)
             if not self.external:
                 busy.append(task.put_async(self.drv.acquire, "Acquire"))
@@ -422,7 +445,7 @@ class DetectorManagerPart(Part):
         motion's first trigger before the motion starts."""
         start, end = int(device.completedSteps), int(device.configuredSteps)
         try:
-            await self._arm(task, device, start, end, fresh=False)
+            await self._arm(task, start, end)
         except ChannelError as e:
             raise self._failed(task, e) from e
 
@@ -439,7 +462,7 @@ class DetectorManagerPart(Part):
         start, end = int(device.completedSteps), int(device.configuredSteps)
         try:
             await self._stop_all(task)
-            await self._arm(task, device, start, end, fresh=False)
+            await self._arm(task, start, end)
         except ChannelError as e:
             raise self._failed(task, e) from e
 
