@@ -122,6 +122,7 @@ class DetectorManagerPart(Part):
         self._end = 0  # where the armed run stops
         self._topping = False
         self._file = ""
+        self._mode = ""  # the trigger mode of the scan configured
 
     # ---- fields
     def setup(self, registrar: PartRegistrar) -> None:
@@ -160,7 +161,9 @@ class DetectorManagerPart(Part):
 
     @property
     def external(self) -> bool:
-        return self.trigger_mode.value == "External"
+        """Whether the scan configured (else the attribute) is External: a
+        change of ``triggerMode`` applies from the next configure."""
+        return (self._mode or self.trigger_mode.value) == "External"
 
     def _view(self, key: str) -> BlockView:
         process = self._controller.process
@@ -216,7 +219,7 @@ class DetectorManagerPart(Part):
             raise BadValueError(
                 f"{self._mri}.configure.formatName: {name!r} is not a file name"
             )
-        if not self.external:
+        if self.trigger_mode.value != "External":
             exposure = float(device.params.get("exposure") or 0.0)
             points = device.points
             duration = points.duration_at(0) if points is not None else None
@@ -236,6 +239,7 @@ class DetectorManagerPart(Part):
             file_dir = str(device.params.get("fileDir") or "")
             name = str(device.params.get("formatName") or "")
             self._file = f"{name}.h5" if file_dir else ""
+            self._mode = self.trigger_mode.value
             settings = self._settings(device, file_dir, name)
             self._show_datasets(name)
             await self._arm(task, 0, device.configuredSteps, True, settings)
@@ -250,7 +254,7 @@ class DetectorManagerPart(Part):
             drv.exposure: exposure,
             drv.acquirePeriod: exposure,
             drv.imageMode: "Multiple",
-            drv.triggerMode: self.trigger_mode.value,
+            drv.triggerMode: self._mode,
             drv.arrayCallbacks: True,
             hdf.enableCallbacks: bool(file_dir),
         }
@@ -472,6 +476,14 @@ class DetectorManagerPart(Part):
             await self._stop_all(task)
         except ChannelError as e:
             raise self._failed(task, e) from e
+
+    @RunnableDevice.Disable
+    async def disable(self, task: Task, device: Any) -> None:
+        """Let go of the hardware: stop it if it can be reached."""
+        try:
+            await self._stop_all(task)
+        except ChannelError:
+            pass  # unreachable hardware is not acquiring for us either
 
     @RunnableDevice.Reset
     async def reset(self, task: Task, device: Any) -> None:
