@@ -95,7 +95,8 @@ def raw_run(file_dir: str, points: int) -> float:
     plugin loaded and started, the writer capturing, then Acquire."""
     import epics
 
-    from malcolm.parts.detector_manager import XML_BATCH, positions_xml
+    from malcolm.parts.adcore import positions_xml
+    from malcolm.parts.detector_manager import XML_BATCH
 
     def put(pv: str, value: Any, wait: bool = True) -> None:
         epics.caput(f"{PREFIX}:{pv}", value, wait=wait)

@@ -44,9 +44,10 @@ from malcolm.fsm import RunnableDevice
 from malcolm.hooks import BlockView, Task
 from malcolm.io import ChannelError
 
+from .adcore import positions_xml
 from .base import Part, PartRegistrar
 
-__all__ = ["DetectorManagerPart", "datasets_meta", "positions_xml"]
+__all__ = ["DetectorManagerPart", "datasets_meta"]
 
 #: trigger modes of the driver
 TRIGGER_MODES = ("Internal", "External")
@@ -76,15 +77,6 @@ def datasets_meta() -> TableMeta:
         },
         "Datasets this device writes in a scan",
         tags=("widget:table",),
-    )
-
-
-def positions_xml(start: int, stop: int) -> str:
-    """NDPosPlugin XML tagging frames with point indices ``start..stop-1``."""
-    body = '"/><position n="'.join(map(str, range(start, stop)))
-    return (
-        '<pos_layout><dimensions><dimension name="n"/></dimensions>'
-        f'<positions><position n="{body}"/></positions></pos_layout>'
     )
 
 
