@@ -226,7 +226,7 @@ class DetectorManagerPart(Part):
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
         try:
-            if self._armed or self._busy or self.drv.detectorState.value != "Idle":
+            if self._armed or self._busy or self._children_busy():
                 await self._stop_all(task)
             file_dir = str(device.params.get("fileDir") or "")
             name = str(device.params.get("formatName") or "")
@@ -237,6 +237,15 @@ class DetectorManagerPart(Part):
             await self._arm(task, 0, device.configuredSteps, True, settings)
         except ChannelError as e:
             raise self._failed(task, e) from e
+
+    def _children_busy(self) -> bool:
+        """Whether the driver acquires, the plugin runs or the writer
+        captures (left so by someone else, or by a scan that faulted)."""
+        return bool(
+            self.drv.detectorState.value != "Idle"
+            or self.pos.running.value
+            or self.hdf.capture.value
+        )
 
     def _settings(self, device: Any, file_dir: str, name: str) -> dict[Any, Any]:
         """The driver's and writer's settings for the scan."""
