@@ -34,11 +34,8 @@ from malcolm.core import (
     BadValueError,
     ChoiceMeta,
     MalcolmError,
-    NumberArrayMeta,
     NumberMeta,
-    StringArrayMeta,
     StringMeta,
-    TableMeta,
 )
 from malcolm.fsm import RunnableDevice
 from malcolm.hooks import BlockView, Task
@@ -46,8 +43,9 @@ from malcolm.io import ChannelError
 
 from .adcore import positions_xml
 from .base import Part, PartRegistrar
+from .detector_datasets import dataset_rows, datasets_meta
 
-__all__ = ["DetectorManagerPart", "datasets_meta"]
+__all__ = ["DetectorManagerPart"]
 
 #: trigger modes of the driver
 TRIGGER_MODES = ("Internal", "External")
@@ -60,24 +58,6 @@ SETTLE_TIMEOUT = 10.0
 #: HDF5 paths the writer uses
 DATA_PATH = "/entry/data"
 UID_PATH = "/entry/uid"
-
-
-def datasets_meta() -> TableMeta:
-    """The ``datasets`` table GDA reads (pymalcolm's columns)."""
-    return TableMeta(
-        {
-            "name": StringArrayMeta("Dataset name, e.g. det.data", label="Name"),
-            "filename": StringArrayMeta("File it is in, relative to fileDir"),
-            "type": StringArrayMeta(
-                "primary, secondary, monitor, position_set or position_value"
-            ),
-            "rank": NumberArrayMeta("int32", "Dimensions of one point's value"),
-            "path": StringArrayMeta("HDF5 path of the dataset"),
-            "uniqueid": StringArrayMeta("HDF5 path of each row's uniqueId"),
-        },
-        "Datasets this device writes in a scan",
-        tags=("widget:table",),
-    )
 
 
 class DetectorManagerPart(Part):
@@ -298,7 +278,7 @@ class DetectorManagerPart(Part):
                     "uniqueid": UID_PATH,
                 }
             )
-        self.datasets.set_value(datasets_meta().validate(rows))
+        self.datasets.set_value(dataset_rows(rows))
 
     # ---- arming and stopping
     async def _load(self, task: Task, upto: int) -> None:
