@@ -9,6 +9,9 @@ from .detector import make_detector
 from .motion import Motor, Trajectory
 from .runner import READY
 
+#: EPICS callback ring size (softioc leaves EPICS' default, 2000)
+CALLBACK_QUEUE = 100000
+
 
 def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
     """Make every record of the IOC under ``prefix`` (and, with
@@ -17,11 +20,16 @@ def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
 
     m1 = Motor(f"{prefix}:M1")
     m2 = Motor(f"{prefix}:M2")
+    detector = make_detector(prefix)
+    trajectory = Trajectory(prefix, {"A": m1, "B": m2})
+    # External triggers: one frame per trajectory point, as a position
+    # compare (a Zebra) triggers the detector on real hardware
+    trajectory.point_listeners.append(detector.trigger)
     things = {
-        "detector": make_detector(prefix),
+        "detector": detector,
         "m1": m1,
         "m2": m2,
-        "trajectory": Trajectory(prefix, {"A": m1, "B": m2}),
+        "trajectory": trajectory,
     }
     if bench_blocks:
         from .bench import Bench
@@ -34,7 +42,12 @@ def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
 def run(prefix: str, bench_blocks: int = 0) -> None:
     """Serve the IOC until stdin closes or the process is signalled."""
     from softioc import asyncio_dispatcher, softioc
+    from softioc.imports import callbackSetQueueSize
 
+    # every record .set() is a callback; frames every 0.5 ms update several
+    # records each, more than the default ring of 2000 holds in a burst (a
+    # lost callback can leave a put never completed)
+    callbackSetQueueSize(CALLBACK_QUEUE)
     dispatcher = asyncio_dispatcher.AsyncioDispatcher()
     things = build(prefix, bench_blocks)
     softioc.iocInit(dispatcher, enable_pva=False)

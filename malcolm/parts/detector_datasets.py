@@ -1,0 +1,50 @@
+"""The ``datasets`` table a device-layer manager reports (issue 13, §2).
+
+GDA reads it (interop.md); a beamline's file assembler uses it to find each
+device's data. Columns as pymalcolm's: ``name`` (``det.data``,
+``x.value``...), ``filename`` (relative to fileDir), ``type`` (one of
+:data:`DATASET_TYPES`), ``rank`` (dimensions of one point's value: a frame
+2, a scalar 0), ``path`` (HDF5 path of the dataset) and ``uniqueid`` (HDF5
+path of a 1-d int dataset giving each row's point: point index + 1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from malcolm.core import BadValueError, NumberArrayMeta, StringArrayMeta, TableMeta
+
+__all__ = ["DATASET_TYPES", "dataset_rows", "datasets_meta"]
+
+#: the values of the ``type`` column
+DATASET_TYPES = ("primary", "secondary", "monitor", "position_set", "position_value")
+
+
+def datasets_meta() -> TableMeta:
+    """The meta of a ``datasets`` attribute (read-only)."""
+    return TableMeta(
+        {
+            "name": StringArrayMeta("Dataset name, e.g. det.data", label="Name"),
+            "filename": StringArrayMeta("File it is in, relative to fileDir"),
+            "type": StringArrayMeta(", ".join(DATASET_TYPES)),
+            "rank": NumberArrayMeta("int32", "Dimensions of one point's value"),
+            "path": StringArrayMeta("HDF5 path of the dataset"),
+            "uniqueid": StringArrayMeta("HDF5 path of each row's uniqueId"),
+        },
+        "Datasets this device writes in a scan",
+        tags=("widget:table",),
+    )
+
+
+def dataset_rows(rows: Iterable[Mapping[str, Any]]) -> dict[str, tuple[Any, ...]]:
+    """The table value of ``rows`` (dicts of the columns); a ``type`` not in
+    :data:`DATASET_TYPES` raises BadValueError naming the row."""
+    rows = list(rows)
+    for i, row in enumerate(rows):
+        if row.get("type") not in DATASET_TYPES:
+            raise BadValueError(
+                f"datasets row {i}: type {row.get('type')!r} is not one of"
+                f" {', '.join(DATASET_TYPES)}"
+            )
+    return datasets_meta().validate(rows)
