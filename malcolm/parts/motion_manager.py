@@ -301,7 +301,7 @@ class MotionTrajectoryPart(Part):
         except ChannelError as e:
             lost = [m for m in self._children() if not self._healthy(m)]
             what = ", ".join(lost) or self.traj
-            raise MalcolmError(f"lost {what}: {e}") from None
+            raise MalcolmError(f"lost connection to {what}: {e}") from None
 
     def _readbacks(self, profile: Profile) -> dict[str, Any]:
         """Scan axis -> the trajectory's readbacks attribute of its axis."""
