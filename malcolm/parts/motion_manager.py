@@ -24,6 +24,7 @@ manager's scan over a ``pmac.TrajectoryScan`` child and two
 from __future__ import annotations
 
 import asyncio
+import os
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -127,11 +128,12 @@ class MotionTrajectoryPart(Part):
     # ---- validate
     @RunnableDevice.Validate
     async def validate(self, task: Task, device: Any) -> dict[str, Any]:
+        mri = self.controller.mri
+        _check_file_args(mri, device.params)
         points = device.points
         moved = self._moved(points)
         if not moved:
             return {}
-        mri = self.controller.mri
         if not points.has_duration:
             raise BadValueError(
                 f"{mri}: the scan gives no duration per point; a trajectory needs one"
@@ -270,21 +272,19 @@ class MotionTrajectoryPart(Part):
         profile = self.profile
         if profile is None:
             return
-        state = {
-            "fresh": self._value(self.traj, "pointsScanned") == 0,
-            "done": profile.start_step,
-        }
-        # the readbacks the IOC posts when this execution ends are newer
+        done_so_far = [profile.start_step]
+        scanned_attr = self.controller.process.get_block(self.traj)["pointsScanned"]
+        # what the IOC posts from this execution on is newer than these
+        before = scanned_attr.timeStamp.to_time()
         self._executed = (profile, self._readback_stamps(profile))
 
         def on_scanned(scanned: int) -> None:
-            if scanned == 0:
-                state["fresh"] = True
-            elif state["fresh"]:
-                done = int(profile.done_after[min(scanned, profile.size) - 1])
-                if done > state["done"]:
-                    state["done"] = done
-                    task.report_progress(done)
+            if scanned <= 0 or scanned_attr.timeStamp.to_time() <= before:
+                return  # the last execution's count, or this one's start
+            done = int(profile.done_after[min(scanned, profile.size) - 1])
+            if done > done_so_far[0]:
+                done_so_far[0] = done
+                task.report_progress(done)
 
         sid = task.subscribe((self.traj, "pointsScanned"), on_scanned)
         try:
@@ -354,6 +354,14 @@ class MotionTrajectoryPart(Part):
         await self._stop_profile(task)
         await self._write_reached()
 
+    @RunnableDevice.Disable
+    async def disable(self, task: Task, device: Any) -> None:
+        """Let go of the hardware: a profile executing is stopped."""
+        self._executed = None
+        self.profile = None
+        if self._healthy(self.traj):
+            await self._stop_profile(task)
+
     @RunnableDevice.Abort
     async def abort(self, task: Task, device: Any) -> None:
         await self._stop_profile(task)
@@ -386,3 +394,27 @@ class MotionTrajectoryPart(Part):
                     "; ".join(f"{m}: {self._value(m, 'health')}" for m in lost)
                 )
             await asyncio.sleep(0.05)
+
+
+def _check_file_args(mri: str, params: dict[str, Any]) -> None:
+    """Refuse a fileDir that cannot take the file, or a formatName that is
+    not a plain file name (BadValueError naming the argument)."""
+    file_dir = str(params.get("fileDir") or "")
+    name = str(params.get("formatName") or "")
+    if not file_dir:
+        return
+    if not name or "/" in name or name in (".", ".."):
+        raise BadValueError(
+            f"{mri}.configure.formatName: {name!r} is not a plain file name"
+        )
+    where = file_dir
+    while not os.path.exists(where):
+        parent = os.path.dirname(where.rstrip("/")) or "."
+        if parent == where:
+            break
+        where = parent
+    if not os.path.isdir(where) or not os.access(where, os.W_OK | os.X_OK):
+        raise BadValueError(
+            f"{mri}.configure.fileDir: cannot write {file_dir!r} ({where!r} is"
+            " not a writeable directory)"
+        )
