@@ -27,18 +27,20 @@ import asyncio
 import os
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from malcolm.core import BadValueError, MalcolmError, StringMeta
 from malcolm.fsm import RunnableDevice
 from malcolm.io.channel import ChannelError
 
 from .base import Part, PartRegistrar
 from .motion_file import MotionFile, datasets_meta, datasets_rows
-from .motion_profile import Profile, ProfileError, build_profile, too_fast
 
 if TYPE_CHECKING:
     from malcolm.hooks import Task
+
+    from .motion_profile import Profile
+
+# numpy and the profile maths load when first used: building blocks (the
+# demo's included) imports this module, and must not import numpy
 
 __all__ = ["MotionTrajectoryPart"]
 
@@ -168,6 +170,8 @@ class MotionTrajectoryPart(Part):
         limits: dict[str, tuple[float, float, float]],
     ) -> None:
         """Speeds and limits of every point (in a worker thread)."""
+        from .motion_profile import too_fast
+
         for chunk in points.chunks(CHECK_CHUNK, axes=moved):
             for axis in moved:
                 vmax, low, high = limits[axis]
@@ -220,6 +224,10 @@ class MotionTrajectoryPart(Part):
 
     async def _prepare(self, task: Task, device: Any, start: int) -> None:
         """Build the profile of the run starting at ``start`` and load it."""
+        import numpy as np
+
+        from .motion_profile import ProfileError, build_profile
+
         points = device.points
         moved = self._moved(points)
         self.profile = None
@@ -316,6 +324,8 @@ class MotionTrajectoryPart(Part):
     async def _write_reached(self) -> None:
         """Once the IOC has posted the readbacks of the execution that ended,
         write a row per point it reached (in a worker thread)."""
+        import numpy as np
+
         executed = self._executed
         if executed is None:
             return
