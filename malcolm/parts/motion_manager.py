@@ -256,10 +256,6 @@ class MotionTrajectoryPart(Part):
                 f"{self.controller.mri}: steps {start}..{stop - 1} need"
                 f" {profile.size} profile points; the controller holds {capacity}"
             )
-        # the run-up: the scan's motors go to their start, at their velocity
-        await task.put(
-            {(self.axes[a][1], "position"): profile.run_up[a] for a in moved}
-        )
         arrays: dict[Any, Any] = {}
         for axis, (letter, motor) in self.axes.items():
             if axis in profile.positions:
@@ -270,8 +266,21 @@ class MotionTrajectoryPart(Part):
         arrays[(self.traj, "times")] = profile.times
         arrays[(self.traj, "pointIndices")] = profile.indices
         arrays[(self.traj, "numPoints")] = profile.size
-        await task.put(arrays)
-        await task.process.post([self.traj, "buildProfile"])
+
+        async def load() -> None:
+            await task.put(arrays)
+            await task.process.post([self.traj, "buildProfile"])
+
+        # the run-up move (the scan's motors to their start, at their
+        # velocity) and the profile's loading and build at the same time
+        run_up = {(self.axes[a][1], "position"): profile.run_up[a] for a in moved}
+        jobs = [asyncio.ensure_future(task.put(run_up)), asyncio.ensure_future(load())]
+        try:
+            await asyncio.gather(*jobs)
+        except BaseException:
+            for job in jobs:
+                job.cancel()
+            raise
         self.profile = profile
 
     # ---- run

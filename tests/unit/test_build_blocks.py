@@ -238,6 +238,7 @@ PACKAGE_VALUES = {
     "ADCore.HDFWriter": {"prefix": "BL"},
     "motor.MotorRecord": {"prefix": "BL:M1"},
     "pmac.TrajectoryScan": {"prefix": "BL"},
+    "pmac.MotorControllerManager": {"prefix": "BL"},
     "demo.Scan": {"det1": "D1", "det2": "D2", "x": "X", "y": "Y"},
 }
 
