@@ -48,6 +48,8 @@ __all__ = ["MotionTrajectoryPart"]
 RECONNECT_WAIT = 10.0
 #: seconds to wait for the last pointsScanned event after the execution ends
 LAST_EVENT_WAIT = 5.0
+#: seconds between two progress reports (completedSteps) during a run
+PROGRESS_PERIOD = 0.01
 #: steps of the scan checked at a time in validate
 CHECK_CHUNK = 65536
 
@@ -295,12 +297,20 @@ class MotionTrajectoryPart(Part):
         before = scanned_attr.timeStamp.to_time()
         self._executed = (profile, self._readback_stamps(profile))
 
+        loop = asyncio.get_running_loop()
+        reported = [loop.time()]
+
         def on_scanned(scanned: int) -> None:
             if scanned <= 0 or scanned_attr.timeStamp.to_time() <= before:
                 return  # the last execution's count, or this one's start
             done = int(profile.done_after[min(scanned, profile.size) - 1])
-            if done > done_so_far[0]:
+            now = loop.time()
+            # at most every PROGRESS_PERIOD, and the run's end at once
+            if done > done_so_far[0] and (
+                now - reported[0] >= PROGRESS_PERIOD or done == profile.stop_step
+            ):
                 done_so_far[0] = done
+                reported[0] = now
                 task.report_progress(done)
 
         sid = task.subscribe((self.traj, "pointsScanned"), on_scanned)
