@@ -393,11 +393,16 @@ class MotionTrajectoryPart(Part):
 
     @RunnableDevice.Abort
     async def abort(self, task: Task, device: Any) -> None:
-        await self._stop_profile(task)
+        """Stop the profile and the motors that can be reached (a child whose
+        IOC is lost has nothing to stop), and write the points reached."""
+        if not self._healthy(self.traj):
+            self._executed = None  # its readbacks will not come
+        else:
+            await self._stop_profile(task)
         moving = [
             task.process.post([motor, "stop"])
             for _, motor in self.axes.values()
-            if not self._value(motor, "doneMoving")
+            if self._healthy(motor) and not self._value(motor, "doneMoving")
         ]
         await asyncio.gather(*moving)
         await self._write_reached()
