@@ -160,14 +160,16 @@ class _Channel:
 
     def _on_changes(self, changes: list[list[Any]]) -> None:
         try:
+            if self.closed:
+                return
+            if self._fast_ok and self._data is not None and self._apply_fast(changes):
+                return
             self._apply(changes)
         except Exception as e:  # a monitor must never stop the process
             log.exception("pva %s: %s", self.name, error_text(e))
 
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
-            return
-        if self._fast_ok and self._data is not None and self._apply_fast(changes):
             return
         if self.data is None or any(not c[0] and len(c) == 2 for c in changes):
             if changes[-1] == [[]]:
