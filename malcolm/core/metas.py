@@ -108,6 +108,8 @@ def _parse_number(dtype: str, text: str) -> int | float:
 
 
 def _number(dtype: str, value: Any) -> int | float:
+    if type(value) is float and dtype == "float64":
+        return value  # the common case, as the checks below would give it
     if _is_numpy(value):
         if getattr(value, "ndim", 0) != 0 or str(value.dtype) == "bool":
             raise BadValueError(f"expected a number ({dtype}), got {_describe(value)}")

@@ -191,3 +191,45 @@ def test_each_update_carries_only_its_own_change(served):  # noqa: F811
         assert updates.empty()  # exactly one update per change
     finally:
         sub.close()
+
+
+def test_changes_the_fast_path_recorded_are_in_the_channels_data(served):  # noqa: F811
+    """The fast path records a change for the channel's data and applies it
+    when the data is next read: a reshape after a run of changes (a whole
+    field replaced among them) builds the new type from data that holds
+    every one of them, and the data equals the process's."""
+    from malcolm.core import Attribute, NumberMeta
+
+    tp, process, server, ctx = served
+    sub = ctx.monitor("FIRST", lambda _value: None)
+    try:
+        ctx.get("FIRST", timeout=5)
+        block = process.get_block("FIRST")
+        chan = server._channels["FIRST"]
+
+        async def changes() -> None:
+            block.counter.set_value(1.0)
+            block.delta.set_value(5.0)
+            # the whole counter attribute, then its value again: later
+            # changes below a replaced field land in the new field
+            block.notify([[["counter"], block.counter.to_dict()]])
+            block.counter.set_value(7.0)
+            assert chan._pending  # recorded, not yet applied
+
+        process.call_threadsafe(changes).result(5)
+        expected = process.call_threadsafe(process.get, ["FIRST"]).result(5)
+
+        def data() -> Any:
+            got = chan.data
+            return {k: v for k, v in got.items() if k != "meta"}
+
+        got = process.call_threadsafe(data).result(5)
+        assert got == {k: v for k, v in expected.items() if k != "meta"}
+        assert not chan._pending
+        process.call_threadsafe(block.add, Attribute("extra", NumberMeta("int32")))
+        deadline = time.monotonic() + 10
+        while "extra" not in (whole := ctx.get("FIRST", timeout=5)).keys():
+            assert time.monotonic() < deadline
+        assert (whole["counter.value"], whole["delta.value"]) == (7.0, 5.0)
+    finally:
+        sub.close()

@@ -79,3 +79,26 @@ def test_a_method_log_value_may_hold_fewer_arguments(blocks):
     assert got == expected is not None
     log["value"] = {"nobody": "x"}
     assert both(hello, ["greet", "took"], log) == (None, None)
+
+
+def test_a_result_is_typed_as_map_to_value_types_it_each_call(blocks):
+    """result_value keeps the type of a result typed by its metas alone; the
+    Value it gives is the one map_to_value builds, call after call, and a
+    new returns meta (other elements) is typed afresh."""
+    from malcolm.io.pva.convert import map_to_value
+    from malcolm.io.pva.results import result_value
+
+    returns = copy.deepcopy(blocks["HELLO"]["greet"]["meta"]["returns"])
+    for name in ("a", "b"):
+        result = {"greeting": f"Hello {name}"}
+        got = result_value(result, returns)
+        want = map_to_value(result, returns["elements"])
+        assert got.type().aspy() == want.type().aspy()
+        assert got.todict() == want.todict()
+    other = copy.deepcopy(returns)
+    other["elements"]["greeting"] = {"typeid": "malcolm:core/NumberMeta:1.0"}
+    got = result_value({"greeting": 3}, other)
+    assert got["greeting"] == 3.0 and got.type()["greeting"] == "d"
+    # a key no meta describes: typed by what it holds, not kept
+    got = result_value({"greeting": "x", "extra": [1, 2]}, returns)
+    assert list(got["extra"]) == [1, 2]

@@ -351,3 +351,25 @@ def test_plain_copies_a_long_list_of_scalars_and_converts_numpy_in_one():
     mixed = floats + [np.float64(2.5)]  # one numpy value: every item converted
     out = plain(mixed)
     assert out[-1] == 2.5 and type(out[-1]) is float
+
+
+def test_a_float64_takes_a_python_float_as_it_is():
+    """The common case (a float for a float64) is returned as it is, and the
+    meta's limits still apply to it."""
+    import math
+
+    from malcolm.core import BadValueError, NumberMeta
+
+    meta = NumberMeta("float64", display={"limitLow": 0.0, "limitHigh": 10.0})
+    value = 2.5
+    assert meta.validate(value) is value
+    open_meta = NumberMeta("float64")
+    assert open_meta.validate(math.inf) == math.inf
+    assert math.isnan(open_meta.validate(math.nan))
+    for bad in (11.0, -1.0, math.nan):
+        try:
+            meta.validate(bad)
+        except BadValueError as e:
+            assert "limits" in str(e)
+        else:
+            raise AssertionError(f"{bad} passed the limits [0, 10]")

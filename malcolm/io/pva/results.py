@@ -15,9 +15,23 @@ from p4p import Value
 
 from malcolm.core import BadValueError
 
-from .convert import map_to_value, to_dict
+from .convert import (
+    STRUCTURE,
+    _fill,
+    _freeze,
+    _type,
+    map_to_value,
+    meta_value_spec,
+    to_dict,
+)
 
 NTURI = "epics:nt/NTURI:1.0"
+
+# (id of a returns meta's elements, a result's keys) -> (those elements, the
+# result's spec and Type): a method's result typed by its metas alone has
+# the same type each call (the elements are kept, so their id is not reused)
+_RESULT_TYPES: dict[tuple[int, tuple[str, ...]], tuple[Any, Any, Any]] = {}
+_RESULT_TYPES_MAX = 256
 
 # where a pvRequest may carry the method's name
 _METHOD_PLACES = ("method", "record._options.method", "field.method")
@@ -96,4 +110,16 @@ def result_value(result: Any, returns: Any) -> Value:
     if not isinstance(result, dict):
         result = {"value": result}
     elements = returns.get("elements") if isinstance(returns, dict) else None
+    if isinstance(elements, dict) and "typeid" not in result:
+        key = (id(elements), tuple(result))
+        known = _RESULT_TYPES.get(key)
+        if known is None or known[0] is not elements:
+            if not all(elements.get(k) for k in result):
+                return map_to_value(result, elements)  # typed by what it holds
+            fields = [(k, meta_value_spec(elements[k])) for k in result]
+            spec = _freeze(("S", STRUCTURE, fields))
+            if len(_RESULT_TYPES) >= _RESULT_TYPES_MAX:
+                _RESULT_TYPES.clear()
+            known = _RESULT_TYPES[key] = (elements, spec, _type(spec))
+        return Value(known[2], _fill(known[1], result))
     return map_to_value(result, elements)

@@ -29,6 +29,7 @@ from typing import Any
 from p4p import Value
 from p4p.server import DynamicProvider, Server
 from p4p.server.raw import SharedPV
+from p4p.server.raw import _SharedPV as _RawSharedPV
 
 from malcolm.core import (
     BadValueError,
@@ -48,6 +49,9 @@ __all__ = ["PvaServer", "start_pva_server"]
 
 log = logging.getLogger(__name__)
 
+# SharedPV.post without p4p's wrap step (the identity here: no nt)
+_post = _RawSharedPV.post
+
 #: seconds a channel nobody is connected to is kept (a client reconnecting)
 RELEASE_DELAY = 2.0
 
@@ -63,7 +67,10 @@ class _Channel:
         self.handler.chan = self
         self.clients = 0
         self.made = 0  # makeChannel calls, to tell a release is stale
-        self.data: Any = None
+        self._data: Any = None
+        # fast-path changes not yet applied to _data: path -> latest data,
+        # in the order of each path's latest change (see the data property)
+        self._pending: dict[tuple[str, ...], Any] = {}
         self.spec: Any = None
         self.type: Any = None
         # the Value each update is built in, reused (see _next_update)
@@ -74,6 +81,21 @@ class _Channel:
         self._setters: dict[tuple[str, ...], Setter] = {}
         # the block meta and a meta channel go whole: never the fast path
         self._fast_ok = self.path[1:] != ["meta"]
+
+    @property
+    def data(self) -> Any:
+        """The channel's copy of its path's data, current (the changes the
+        fast path only recorded are applied first)."""
+        if self._pending:
+            pending = [[list(k), v] for k, v in self._pending.items()]
+            self._pending.clear()
+            self._data = _apply_changes(self._data, pending)
+        return self._data
+
+    @data.setter
+    def data(self, data: Any) -> None:
+        self._pending.clear()
+        self._data = data
 
     def prime(self) -> None:
         """Open the PV at once with a snapshot of its path (in p4p's thread:
@@ -138,14 +160,16 @@ class _Channel:
 
     def _on_changes(self, changes: list[list[Any]]) -> None:
         try:
+            if self.closed:
+                return
+            if self._fast_ok and self._data is not None and self._apply_fast(changes):
+                return
             self._apply(changes)
         except Exception as e:  # a monitor must never stop the process
             log.exception("pva %s: %s", self.name, error_text(e))
 
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
-            return
-        if self._fast_ok and self.data is not None and self._apply_fast(changes):
             return
         if self.data is None or any(not c[0] and len(c) == 2 for c in changes):
             if changes[-1] == [[]]:
@@ -212,6 +236,7 @@ class _Channel:
         value = self._next_update()
         block = len(self.path) == 1
         setters = self._setters
+        keys = []
         for change in changes:
             if len(change) != 2:
                 return False
@@ -227,8 +252,15 @@ class _Channel:
                 setter = setters[key] = compile_setter(sub_spec, ".".join(path))
             if not setter(value, change[1]):
                 return False
-        self.data = _apply_changes(self.data, changes)
-        self.pv.post(value)
+            keys.append(key)
+        # recorded, applied to data when it is next read: a path's latest
+        # change moved last, so applying them in order gives what applying
+        # every change in turn would
+        pending = self._pending
+        for key, change in zip(keys, changes):
+            pending.pop(key, None)
+            pending[key] = change[1]
+        _post(self.pv, value)
         return True
 
     def _reopen(self, spec: Any = None) -> None:

@@ -136,7 +136,15 @@ class _Generator:
         sub, where = self.const(spec), repr(dotted)
         exact = _EXACT.get(spec)
         lines = []
-        if exact is not None:
+        if spec == "as":  # a list of str as it is (a MethodLog's present)
+            lines += [
+                f"{pad}if type({data}) is list and all(\n",
+                f"{pad}    type(x) is str for x in {data}\n",
+                f"{pad}):\n",
+                f"{pad}    value[{where}] = {data}\n",
+                f"{pad}elif fits({sub}, {data}):\n",
+            ]
+        elif exact is not None:
             types = self.const(exact)
             lines += [
                 f"{pad}if type({data}) in {types}:\n",
