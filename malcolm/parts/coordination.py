@@ -321,22 +321,26 @@ class MotorPart(DeviceChildPart):
 class ScanFilePart(Part):
     """The scan's one file: ``<fileDir>/<fileTemplate % formatName>``.
 
-    configure() takes ``fileDir`` ("" = no file), ``formatName`` (default:
+    configure() takes ``fileDir`` ("" = no file; default ``file_dir``),
+    ``formatName`` (default:
     the block's mri in lower case) and ``fileTemplate`` (default
     ``%s.nxs``). After PostConfigure ``datasets`` lists what the file will
     hold; after each run (PostRunArmed, PostRunReady) and after an abort the
     file is (re)written from the children's raw files, in a worker thread.
     """
 
-    def __init__(self, name: str = "file") -> None:
+    def __init__(self, name: str = "file", file_dir: str = "") -> None:
         super().__init__(name)
+        self.file_dir = file_dir
         self.path: Path | None = None
         self.last_result: Any = None
 
     def setup(self, registrar: PartRegistrar) -> None:
         self._controller = registrar.controller
         registrar.add_configure_arg(
-            "fileDir", StringMeta("Directory of the scan's files; '' = none"), ""
+            "fileDir",
+            StringMeta("Directory of the scan's files; '' = none"),
+            self.file_dir,
         )
         registrar.add_configure_arg(
             "formatName", StringMeta("Name of the scan's file (default: the mri)"), ""
