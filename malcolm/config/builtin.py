@@ -23,8 +23,10 @@ document's ``parts.PosPluginPart``, ``parts.DriverRunPart``,
 ``parts.DetectorPart``, ``parts.ZebraPart``, ``parts.MotorPart``.
 
 A Zebra2 box over TCP (``malcolm.parts.zebra2_manager``,
-``malcolm.parts.zebra2_capture``): ``zebra2.Manager`` (children made by
-introspecting the box) and ``zebra2.Capture`` (PCAP capture to HDF5).
+``malcolm.parts.zebra2_capture``, ``malcolm.parts.zebra2_scan``):
+``zebra2.Manager`` (children made by introspecting the box),
+``zebra2.Capture`` (PCAP capture to HDF5) and ``zebra2.Scan`` (the
+ZebraManager's position compare and capture, one row per scan point).
 
 Saved-design records (``malcolm.parts.design``): ``parts.ModelPart``,
 ``parts.PalettePart``, ``parts.ExportPart``, ``parts.FollowerPart`` and
@@ -41,7 +43,7 @@ from typing import Any
 from malcolm.controllers.manager import ManagerController
 from malcolm.controllers.runnable import RunnableController
 from malcolm.controllers.stateful import StatefulController
-from malcolm.parts import adcore, soft, zebra2_capture, zebra2_manager
+from malcolm.parts import adcore, soft, zebra2_capture, zebra2_manager, zebra2_scan
 from malcolm.parts import ca as ca_parts
 from malcolm.parts.base import Part
 from malcolm.parts.demo import (
@@ -121,6 +123,7 @@ _BUILTINS: dict[str, Any] = {
     # a Zebra2 box over TCP (docs/zebra2.md)
     "zebra2.Manager": zebra2_manager.Zebra2ManagerPart,
     "zebra2.Capture": zebra2_capture.Zebra2CapturePart,
+    "zebra2.Scan": zebra2_scan.Zebra2ScanPart,
     **DESIGN_KINDS,
 }
 

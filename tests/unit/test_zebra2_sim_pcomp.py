@@ -143,3 +143,37 @@ async def test_trig_edges_of_counter_and_pcap() -> None:
         assert (a[:, 0] == 1 + 2 * np.arange(10)).all()  # after each fall
         await wire.close()
         await data.close()
+
+
+@aio
+async def test_pcomp_enabled_before_its_clock_starts_waits_for_it() -> None:
+    """The counter holds still until its clock starts (ACTIVE high, no
+    pulses), then the pulses come from the counter's START, as on a box whose
+    motion starts after position compare is armed."""
+    clock = ManualClock()
+    async with running("tier2", clock=clock) as server:
+        wire = await Wire.open(server.control_port)
+        for line in [
+            "CLOCK1.PERIOD.UNITS=ms",
+            "CLOCK1.PERIOD=1",
+            "COUNTER1.TRIG=CLOCK1.OUT",
+            "COUNTER1.STEP=1",
+            "COUNTER1.START=10",
+            "PCOMP1.INP=COUNTER1.OUT",
+            "PCOMP1.START=12",
+            "PCOMP1.STEP=2",
+            "PCOMP1.WIDTH=1",
+            "PCOMP1.PULSES=3",
+            "COUNTER1.ENABLE=ONE",
+            "PCOMP1.ENABLE=ONE",
+        ]:
+            assert await wire.ask(line) == ["OK"], line
+        clock.advance(0.01)
+        assert await wire.ask("PCOMP1.ACTIVE?") == ["OK =1"]
+        assert await wire.ask("PCOMP1.PRODUCED?") == ["OK =0"]
+        assert await wire.ask("COUNTER1.OUT?") == ["OK =10"]
+        assert await wire.ask("CLOCK1.ENABLE=ONE") == ["OK"]
+        clock.advance(0.1)
+        assert await wire.ask("PCOMP1.PRODUCED?") == ["OK =3"]
+        assert await wire.ask("PCOMP1.ACTIVE?") == ["OK =0"]
+        await wire.close()

@@ -73,7 +73,14 @@ class PcompModel:
             self.base = int(self._raw(self.clock.rises_upto(t), 0))
 
     def _moving(self) -> bool:
-        return self.clock is not None and self.enabled and self.dir * self.s > 0
+        # a counter whose clock is not running yet holds still: no pulses,
+        # ACTIVE stays high until the clock starts and the pulses are made
+        return (
+            self.clock is not None
+            and self.clock.running()
+            and self.enabled
+            and self.dir * self.s > 0
+        )
 
     def _raw(self, j, offset: int):
         """Thresholds (plus ``offset``) passed by the position at edge ``j``."""
