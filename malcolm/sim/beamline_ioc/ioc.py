@@ -17,11 +17,16 @@ def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
 
     m1 = Motor(f"{prefix}:M1")
     m2 = Motor(f"{prefix}:M2")
+    detector = make_detector(prefix)
+    trajectory = Trajectory(prefix, {"A": m1, "B": m2})
+    # External triggers: one frame per trajectory point, as a position
+    # compare (a Zebra) triggers the detector on real hardware
+    trajectory.point_listeners.append(detector.trigger)
     things = {
-        "detector": make_detector(prefix),
+        "detector": detector,
         "m1": m1,
         "m2": m2,
-        "trajectory": Trajectory(prefix, {"A": m1, "B": m2}),
+        "trajectory": trajectory,
     }
     if bench_blocks:
         from .bench import Bench

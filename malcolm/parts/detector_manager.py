@@ -1,0 +1,459 @@
+"""DetectorManagerPart: a device-layer detector manager over Channel Access.
+
+The part of ``ADCore.DetectorManager`` (docs/devices.md). It drives three
+child hardware blocks, a detector driver (``ADCore.DetectorDriver``), a
+position plugin (``ADCore.PositionPlugin``) and an HDF5 writer
+(``ADCore.HDFWriter``), through a scan:
+
+- **configure** sets the driver (exposure and period from the scan's
+  duration, Multiple images, ``numImages``, ``triggerMode``), the writer
+  (``<fileDir>/<formatName>.h5``, ``numCapture``) and loads the run's points
+  into the position plugin as XML (``<position n="i"/>``, a few thousand per
+  put), then **arms**: the plugin running and the writer capturing, and in
+  External mode the driver acquiring, waiting for triggers;
+- **run** starts the driver (Internal) and waits for the writer's capture,
+  the plugin and the driver to finish; progress is the frames written;
+- **pause** stops the driver and the plugins (the file is closed); **seek**
+  to step k re-arms at k: the plugin's ``idStart`` is k + 1 and its
+  positions start at point k, the writer appends to the file;
+- **abort** stops everything (the file is closed); a channel lost on the
+  way fails the phase with an error naming the PV and the children whose
+  health is not OK.
+
+A frame's uniqueId is the point's index + 1 (the plugin's ``idStart`` plus
+the positions it has used since it was cleared).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+from typing import Any
+
+from malcolm.core import (
+    BadValueError,
+    ChoiceMeta,
+    MalcolmError,
+    NumberArrayMeta,
+    NumberMeta,
+    StringArrayMeta,
+    StringMeta,
+    TableMeta,
+)
+from malcolm.fsm import RunnableDevice
+from malcolm.hooks import BlockView, Task
+from malcolm.io import ChannelError
+
+from .base import Part, PartRegistrar
+
+__all__ = ["DetectorManagerPart", "datasets_meta", "positions_xml"]
+
+#: trigger modes of the driver
+TRIGGER_MODES = ("Internal", "External")
+#: the shortest frame the simulated driver makes, in seconds
+MIN_EXPOSURE = 0.0005
+#: positions per XML put: a char waveform of 65536 bytes holds 2500 of 8 digits
+XML_BATCH = 2500
+#: seconds to wait for a child to show it is armed or stopped
+SETTLE_TIMEOUT = 10.0
+#: HDF5 paths the writer uses
+DATA_PATH = "/entry/data"
+UID_PATH = "/entry/uid"
+
+
+def datasets_meta() -> TableMeta:
+    """The ``datasets`` table GDA reads (pymalcolm's columns)."""
+    return TableMeta(
+        {
+            "name": StringArrayMeta("Dataset name, e.g. det.data", label="Name"),
+            "filename": StringArrayMeta("File it is in, relative to fileDir"),
+            "type": StringArrayMeta(
+                "primary, secondary, monitor, position_set or position_value"
+            ),
+            "rank": NumberArrayMeta("int32", "Dimensions of one point's value"),
+            "path": StringArrayMeta("HDF5 path of the dataset"),
+            "uniqueid": StringArrayMeta("HDF5 path of each row's uniqueId"),
+        },
+        "Datasets this device writes in a scan",
+        tags=("widget:table",),
+    )
+
+
+def positions_xml(start: int, stop: int) -> str:
+    """NDPosPlugin XML tagging frames with point indices ``start..stop-1``."""
+    body = '"/><position n="'.join(map(str, range(start, stop)))
+    return (
+        '<pos_layout><dimensions><dimension name="n"/></dimensions>'
+        f'<positions><position n="{body}"/></positions></pos_layout>'
+    )
+
+
+class DetectorManagerPart(Part):
+    """Scans an areaDetector: driver, position plugin and HDF5 writer."""
+
+    def __init__(
+        self,
+        name: str,
+        driver: str,
+        plugin: str,
+        writer: str,
+        trigger_mode: str = "Internal",
+        format_name: str = "",
+        preload: int = 10000,
+    ) -> None:
+        super().__init__(name)
+        if trigger_mode not in TRIGGER_MODES:
+            raise ValueError(
+                f"trigger_mode must be one of {', '.join(TRIGGER_MODES)},"
+                f" not {trigger_mode!r}"
+            )
+        if int(preload) < 1:
+            raise ValueError(f"preload must be at least 1, not {preload}")
+        self.mris = {"driver": driver, "plugin": plugin, "writer": writer}
+        self.initial_trigger_mode = trigger_mode
+        self.format_name = format_name
+        self.preload = int(preload)
+        self._mri = ""
+        self._origin: str | None = None
+        self._process: Any = None
+        self._armed = False
+        self._busy: list[Any] = []
+        self._loaded = 0  # positions loaded into the plugin (point index)
+        self._end = 0  # where the armed run stops
+        self._topping = False
+        self._file = ""
+
+    # ---- fields
+    def setup(self, registrar: PartRegistrar) -> None:
+        self._mri = registrar.mri
+        self._controller = registrar.controller
+        default_name = self.format_name or self._mri.split(":")[-1].lower()
+        registrar.add_configure_arg(
+            "fileDir",
+            StringMeta("Directory of the raw file ('' for no file)"),
+            default="",
+        )
+        registrar.add_configure_arg(
+            "formatName",
+            StringMeta("The file is <fileDir>/<formatName>.h5"),
+            default=default_name,
+        )
+        registrar.add_configure_arg(
+            "exposure",
+            NumberMeta("float64", "Exposure per frame in s (0: the scan's duration)"),
+            default=0.0,
+        )
+        self.trigger_mode = registrar.add_attribute(
+            "triggerMode",
+            ChoiceMeta(
+                TRIGGER_MODES,
+                "Internal: frames at the exposure; External: a"
+                " frame per trigger (armed at configure)",
+            ),
+            self.initial_trigger_mode,
+            put=self._put_trigger_mode,
+        )
+        self.datasets = registrar.add_attribute("datasets", datasets_meta())
+
+    async def _put_trigger_mode(self, value: str) -> None:
+        self.trigger_mode.set_value(value)
+
+    @property
+    def external(self) -> bool:
+        return self.trigger_mode.value == "External"
+
+    def _view(self, key: str) -> BlockView:
+        process = self._controller.process
+        return BlockView(process, self.mris[key], self._mri)
+
+    @property
+    def drv(self) -> BlockView:
+        return self._view("driver")
+
+    @property
+    def pos(self) -> BlockView:
+        return self._view("plugin")
+
+    @property
+    def hdf(self) -> BlockView:
+        return self._view("writer")
+
+    # ---- errors
+    def _lost(self, task: Task) -> str:
+        """The children whose health is not OK, with it."""
+        bad = []
+        for mri in self.mris.values():
+            try:
+                health = task.process.get([mri, "health", "value"])
+            except LookupError:
+                health = "no such block"
+            if health != "OK":
+                bad.append(f"{mri}: {health}")
+        return "; ".join(bad)
+
+    def _failed(self, task: Task, e: Exception) -> MalcolmError:
+        lost = self._lost(task)
+        return MalcolmError(f"{e}" + (f" (children not OK: {lost})" if lost else ""))
+
+    # ---- parameters
+    def _exposure(self, device: Any, step: int) -> float:
+        exposure = float(device.params.get("exposure") or 0.0)
+        if exposure <= 0 and device.points is not None:
+            exposure = float(device.points.duration_at(step) or 0.0)
+        return exposure
+
+    @RunnableDevice.Validate
+    async def validate(self, task: Task, device: Any) -> dict[str, Any]:
+        file_dir = str(device.params.get("fileDir") or "")
+        name = str(device.params.get("formatName") or "")
+        if file_dir and not os.path.isabs(file_dir):
+            raise BadValueError(
+                f"{self._mri}.configure.fileDir: {file_dir!r} is not an absolute path"
+            )
+        if file_dir and (not name or "/" in name):
+            raise BadValueError(
+                f"{self._mri}.configure.formatName: {name!r} is not a file name"
+            )
+        if not self.external:
+            exposure = float(device.params.get("exposure") or 0.0)
+            points = device.points
+            duration = points.duration_at(0) if points is not None else None
+            if exposure <= 0 and not duration:
+                raise BadValueError(
+                    f"{self._mri}.configure: Internal triggering needs the"
+                    " scan's duration or an exposure"
+                )
+        return {}
+
+    # ---- configure
+    @RunnableDevice.Configure
+    async def configure(self, task: Task, device: Any) -> None:
+        try:
+            await self._stop_all(task)
+            file_dir = str(device.params.get("fileDir") or "")
+            name = str(device.params.get("formatName") or "")
+            self._file = f"{name}.h5" if file_dir else ""
+            await self._setup(task, device, file_dir, name)
+            self._show_datasets(name)
+            await self._arm(task, device, 0, device.configuredSteps, fresh=True)
+        except ChannelError as e:
+            raise self._failed(task, e) from e
+
+    async def _setup(self, task: Task, device: Any, file_dir: str, name: str) -> None:
+        drv, hdf = self.drv, self.hdf
+        exposure = max(self._exposure(device, 0), MIN_EXPOSURE)
+        puts = {
+            drv.exposure: exposure,
+            drv.acquirePeriod: exposure,
+            drv.imageMode: "Multiple",
+            drv.triggerMode: self.trigger_mode.value,
+            drv.arrayCallbacks: True,
+        }
+        if file_dir:
+            puts.update(
+                {
+                    hdf.filePath: file_dir.rstrip("/") + "/",
+                    hdf.fileName: name,
+                    hdf.fileTemplate: "%s%s.h5",
+                    hdf.enableCallbacks: True,
+                }
+            )
+        else:
+            puts[hdf.enableCallbacks] = False
+        await task.put(puts)
+
+    def _show_datasets(self, name: str) -> None:
+        rows = []
+        if self._file:
+            rows.append(
+                {
+                    "name": f"{name}.data",
+                    "filename": self._file,
+                    "type": "primary",
+                    "rank": 2,
+                    "path": DATA_PATH,
+                    "uniqueid": UID_PATH,
+                }
+            )
+        self.datasets.set_value(datasets_meta().validate(rows))
+
+    # ---- arming and stopping
+    async def _load(self, task: Task, upto: int) -> None:
+        """Load positions ``self._loaded .. upto-1`` into the plugin."""
+        while self._loaded < upto:
+            stop = min(upto, self._loaded + XML_BATCH)
+            await task.put(self.pos.xml, positions_xml(self._loaded, stop))
+            self._loaded = stop
+
+    async def _arm(
+        self, task: Task, device: Any, start: int, end: int, fresh: bool
+    ) -> None:
+        """Make the children wait for the frames of points ``start..end-1``:
+        plugins first, then (External) the driver."""
+        self._armed = False
+        self._busy = []
+        self._end = end
+        frames = end - start
+        if frames <= 0:
+            return
+        drv, pos, hdf = self.drv, self.pos, self.hdf
+        puts = {
+            drv.numImages: frames,
+            pos.delete: True,
+            pos.idStart: start + 1,
+            pos.enableCallbacks: True,
+        }
+        if self._file:
+            puts.update(
+                {hdf.numCapture: frames, hdf.append: not fresh, hdf.lazyOpen: not fresh}
+            )
+        await task.put(puts)
+        self._loaded = start
+        await self._load(task, min(end, start + self.preload))
+        waits = [task.when_matches(pos.running, True, timeout=SETTLE_TIMEOUT)]
+        self._busy.append(task.put_async(pos.start, True))
+        if self._file:
+            self._busy.append(task.put_async(hdf.capture, True))
+            waits.append(task.when_matches(hdf.capture, True, timeout=SETTLE_TIMEOUT))
+        await self._until_armed(waits)
+        if self.external:
+            self._busy.append(task.put_async(drv.acquire, "Acquire"))
+            await self._until_armed(
+                [
+                    task.when_matches(
+                        drv.detectorState, "Acquire", timeout=SETTLE_TIMEOUT
+                    )
+                ]
+            )
+        self._armed = True
+
+    async def _until_armed(self, waits: list[Any]) -> None:
+        """Wait for ``waits``; a busy put that ends first (it failed, or the
+        writer could not open its file) fails the arming."""
+        pending = set(waits)
+        busy = set(self._busy)
+        while pending:
+            done, _ = await asyncio.wait(
+                pending | busy, return_when=asyncio.FIRST_COMPLETED
+            )
+            for fut in done & busy:
+                fut.result()  # its error, if it failed
+                hdf = self.hdf
+                if self._file and hdf.writeStatus.value != "Write OK":
+                    raise MalcolmError(
+                        f"{self.mris['writer']}: cannot write"
+                        f" {hdf.fullFileName.value}: {hdf.writeMessage.value}"
+                    )
+                raise MalcolmError(f"{self._mri}: a child stopped while arming")
+            for fut in done & pending:
+                fut.result()
+            pending -= done
+
+    async def _stop_all(self, task: Task) -> None:
+        """Stop the driver, then the plugins (the file is closed)."""
+        armed = self._armed or bool(self._busy)
+        self._armed = False
+        self._busy = []
+        drv, pos, hdf = self.drv, self.pos, self.hdf
+        await task.put(drv.stop, True)
+        await task.wait_all(
+            task.when_matches(drv.detectorState, "Idle", timeout=SETTLE_TIMEOUT)
+        )
+        if not (armed or pos.running.value or hdf.capture.value):
+            return
+        await task.put({pos.stop: True, hdf.stop: True})
+        await task.wait_all(
+            task.when_matches(pos.running, False, timeout=SETTLE_TIMEOUT),
+            task.when_matches(hdf.capture, False, timeout=SETTLE_TIMEOUT),
+        )
+
+    # ---- run
+    def _top_up(self, left: int, task: Task) -> Any:
+        """Load more positions when the plugin runs low."""
+        if self._topping or self._loaded >= self._end or left > XML_BATCH:
+            return None
+
+        async def load() -> None:
+            self._topping = True
+            try:
+                await self._load(task, min(self._end, self._loaded + XML_BATCH))
+            finally:
+                self._topping = False
+
+        return load()
+
+    @RunnableDevice.Run
+    async def run(self, task: Task, device: Any) -> None:
+        start, end = int(device.completedSteps), int(device.configuredSteps)
+        try:
+            if not self._armed:
+                await self._arm(task, device, start, end, fresh=False)
+            busy = list(self._busy)
+            if not self.external:
+                busy.append(task.put_async(self.drv.acquire, "Acquire"))
+            counter = self.hdf.numCaptured if self._file else self.pos.processed
+            ids = [
+                task.subscribe(
+                    counter, lambda n: task.report_progress(min(start + int(n), end))
+                ),
+                task.subscribe(self.pos.positions, self._top_up, task),
+            ]
+            try:
+                await task.wait_all(*busy)
+            finally:
+                for sid in ids:
+                    task.unsubscribe(sid)
+        except ChannelError as e:
+            raise self._failed(task, e) from e
+        self._armed = False
+        self._busy = []
+        if self._file and self.hdf.writeStatus.value != "Write OK":
+            raise MalcolmError(
+                f"{self.mris['writer']}: {self.hdf.writeMessage.value}"
+                f" ({self.hdf.fullFileName.value})"
+            )
+        task.report_progress(end)
+
+    @RunnableDevice.PostRunArmed
+    async def post_run_armed(self, task: Task, device: Any) -> None:
+        """Arm for the next run now, so an External detector waits for the
+        motion's first trigger before the motion starts."""
+        start, end = int(device.completedSteps), int(device.configuredSteps)
+        try:
+            await self._arm(task, device, start, end, fresh=False)
+        except ChannelError as e:
+            raise self._failed(task, e) from e
+
+    # ---- pause, seek, abort, reset
+    @RunnableDevice.Pause
+    async def pause(self, task: Task, device: Any) -> None:
+        try:
+            await self._stop_all(task)
+        except ChannelError as e:
+            raise self._failed(task, e) from e
+
+    @RunnableDevice.Seek
+    async def seek(self, task: Task, device: Any) -> None:
+        start, end = int(device.completedSteps), int(device.configuredSteps)
+        try:
+            await self._stop_all(task)
+            await self._arm(task, device, start, end, fresh=False)
+        except ChannelError as e:
+            raise self._failed(task, e) from e
+
+    @RunnableDevice.Abort
+    async def abort(self, task: Task, device: Any) -> None:
+        try:
+            await self._stop_all(task)
+        except ChannelError as e:
+            raise self._failed(task, e) from e
+
+    @RunnableDevice.Reset
+    async def reset(self, task: Task, device: Any) -> None:
+        lost = self._lost(task)
+        if lost:
+            raise MalcolmError(f"hardware not connected: {lost}")
+        try:
+            await self._stop_all(task)
+        except ChannelError as e:
+            raise self._failed(task, e) from e
