@@ -158,11 +158,17 @@ def cmd_beamline(args: argparse.Namespace) -> int:
         # SIGTERM while starting: stop the subprocesses as Ctrl-C would
         signal.signal(signal.SIGTERM, _raise_interrupt)
         ioc.start()
-        print(f"malcolm beamline: simulated IOC, prefix {args.prefix}", flush=True)
+        assert ioc.process is not None
+        print(
+            f"malcolm beamline: simulated IOC, prefix {args.prefix}"
+            f" (pid {ioc.process.pid})",
+            flush=True,
+        )
         zebra.start()
         print(
             f"malcolm beamline: simulated Zebra2: control {zebra.host}:"
-            f"{zebra.control_port}, data {zebra.host}:{zebra.data_port}",
+            f"{zebra.control_port}, data {zebra.host}:{zebra.data_port}"
+            f" (pid {zebra.process.pid if zebra.process else '-'})",
             flush=True,
         )
         defines = beamline_defines(args.prefix, zebra, file_dir)

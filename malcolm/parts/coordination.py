@@ -386,7 +386,7 @@ class ScanFilePart(Part):
         if self.path is None:
             self.datasets.set_value(_table([]))
             return
-        rows = self.child_rows(task)
+        rows = self.child_rows(task, device)
         names = {r.name for r in rows}
         points = device.points
         axes = list(points.axes) if points is not None else []
@@ -417,8 +417,12 @@ class ScanFilePart(Part):
                 )
         self.datasets.set_value(_table(out))
 
-    def child_rows(self, task: Task) -> list[Any]:
-        """The ``datasets`` rows of every device child that has them."""
+    def child_rows(self, task: Task, device: Any) -> list[Any]:
+        """The ``datasets`` rows of every device child that has them; a
+        name the child gave under its raw file's name (``scan-det.data``)
+        is put under the part's name in lower case (``det.data``)."""
+        from dataclasses import replace
+
         from malcolm.io.nexus import rows_from_table
 
         rows = []
@@ -427,8 +431,14 @@ class ScanFilePart(Part):
                 table = task.process.get([part.mri, "datasets", "value"])
             except LookupError:
                 continue
-            if table:
-                rows.extend(rows_from_table(_columns(table)))
+            if not table:
+                continue
+            raw = f"{part.raw_name(device)}."
+            for row in rows_from_table(_columns(table)):
+                if row.name.startswith(raw):
+                    group = part.name.lower()
+                    row = replace(row, name=group + "." + row.name[len(raw) :])
+                rows.append(row)
         return rows
 
     @RunnableDevice.PostRunArmed
@@ -453,7 +463,7 @@ class ScanFilePart(Part):
             return
         from malcolm.io.nexus import assemble
 
-        rows = self.child_rows(task)
+        rows = self.child_rows(task, device)
         points = device.points.copy()
         path = self.path
         attrs = {"scan_mri": device.mri, "completed_steps": device.completedSteps}

@@ -59,7 +59,8 @@ class FakeDevicePart(Part):
         self.rows = []
         name = f"{self.got['formatName']}.h5"
         self.datasets.set_value(
-            {"name": [self.dataset], "filename": [name], "type": [self.kind],
+            {"name": [self.dataset.format(fmt=self.got["formatName"])],
+             "filename": [name], "type": [self.kind],
              "rank": [self.rank], "path": ["/data"], "uniqueid": ["/uid"]}
         )  # fmt: skip
 
@@ -99,7 +100,8 @@ class FakeDevicePart(Part):
 async def make(tmp_path: Path) -> tuple[Process, dict[str, FakeDevicePart]]:
     process = Process()
     devices = {
-        "DET": FakeDevicePart("det", "det.data", "primary", 2),
+        # named as pymalcolm's detectors name it: under their formatName
+        "DET": FakeDevicePart("det", "{fmt}.data", "primary", 2),
         "MOTORS": FakeDevicePart("motors", "x.value", "position_value"),
         "ZEBRA": FakeDevicePart("zebra", "panda.INENC1.VAL", "monitor"),
     }
