@@ -20,7 +20,9 @@ Parts: the demo's (``parts.HelloPart``, ``parts.CounterPart``,
 ``parts.SimMotorPart``, ``parts.SimDetectorPart``, ``parts.RunnableChildPart``,
 ``parts.MotorMovePart``), ``parts.SoftPositionPluginPart``, and the design
 document's ``parts.PosPluginPart``, ``parts.DriverRunPart``,
-``parts.DetectorPart``, ``parts.ZebraPart``, ``parts.MotorPart``.
+``parts.DetectorPart``, ``parts.ZebraPart``, ``parts.MotorPart``;
+``parts.MotionTrajectoryPart`` (``malcolm.parts.motion_manager``: a motion
+controller manager's trajectory scan).
 
 A Zebra2 box over TCP (``malcolm.parts.zebra2_manager``,
 ``malcolm.parts.zebra2_capture``, ``malcolm.parts.zebra2_scan``):
@@ -43,7 +45,14 @@ from typing import Any
 from malcolm.controllers.manager import ManagerController
 from malcolm.controllers.runnable import RunnableController
 from malcolm.controllers.stateful import StatefulController
-from malcolm.parts import adcore, soft, zebra2_capture, zebra2_manager, zebra2_scan
+from malcolm.parts import (
+    adcore,
+    motion_manager,
+    soft,
+    zebra2_capture,
+    zebra2_manager,
+    zebra2_scan,
+)
 from malcolm.parts import ca as ca_parts
 from malcolm.parts.base import Part
 from malcolm.parts.demo import (
@@ -120,6 +129,8 @@ _BUILTINS: dict[str, Any] = {
     "parts.DetectorPart": adcore.DetectorPart,
     "parts.ZebraPart": adcore.ZebraPart,
     "parts.MotorPart": adcore.MotorPart,
+    # a motion controller manager's trajectory scan (docs/devices.md)
+    "parts.MotionTrajectoryPart": motion_manager.MotionTrajectoryPart,
     # a Zebra2 box over TCP (docs/zebra2.md)
     "zebra2.Manager": zebra2_manager.Zebra2ManagerPart,
     "zebra2.Capture": zebra2_capture.Zebra2CapturePart,

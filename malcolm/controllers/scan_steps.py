@@ -67,7 +67,9 @@ def plan_scan(
         points = scan_points(params["generator"])
         axes = params.get("axesToMove")
         if axes is None:
-            axes = list(simultaneous_axes) or None
+            # the axes the block can move together that this scan has (as
+            # pymalcolm: a line in x on an x/y controller moves x)
+            axes = [a for a in simultaneous_axes if a in points.axes] or None
         spr = points.steps_per_run(list(axes) if axes is not None else None)
     except (GeneratorError, ValueError) as e:
         raise BadValueError(f"{mri}.configure: {e}") from None

@@ -3,29 +3,47 @@
 A motor ``P:M1`` serves the motor record's fields as PVs ``P:M1:VAL`` (a
 put completes when the move is done), ``:RBV``, ``:VELO``, ``:ACCL``,
 ``:DMOV``, ``:STOP`` (a put of 1 stops the move), ``:HLM``, ``:LLM`` (which
-become ``VAL``'s drive limits) and ``:EGU``. A soft IOC cannot make record
+become ``VAL``'s drive limits), ``:VMAX`` (the fastest it may go, in mm/s) and
+``:EGU``. A soft IOC cannot make record
 fields, so ``:`` stands where a motor record has ``.``; the
 ``motor.MotorRecord`` definition takes the separator as a parameter.
 
 The trajectory controller ``P:TRAJ:`` (after pmac's trajectory scan):
 ``PositionsA``/``PositionsB`` (double arrays), ``Times`` (a long array of
-milliseconds per point), ``NumPoints``, ``BuildProfile`` (checks the arrays;
-``BuildStatus_RBV`` says Success or Failure, ``BuildMessage_RBV`` why),
+microseconds to reach each point from the last), ``PointIndices`` (a long
+array: the scan point whose exposure starts at each profile point, -1 for
+none; by default each profile point announces its own index),
+``NumPoints``, ``BuildProfile`` (checks the arrays; ``BuildStatus_RBV``
+says Success or Failure, ``BuildMessage_RBV`` why),
 ``ExecuteProfile`` (walks the built points in time, moving the motors of
 axes A and B; a put completes at the end), ``ExecuteStatus_RBV``,
 ``ExecuteState_RBV`` (Done/Executing), ``PointsScanned_RBV`` (progress)
 and ``AbortProfile``.
+
+It holds :attr:`Trajectory.MAX_POINTS` (50,000) profile points, enough for a
+10,000-point scan (two profile points per scan point, plus the run-up and
+turnarounds); arrays that large need ``EPICS_CA_MAX_ARRAY_BYTES`` above
+EPICS' 16 kB default, which the IOC sets for itself (pyepics clients set it
+too). Each time a profile point is reached the motors of A and B are placed
+there, ``PointsScanned_RBV`` counts it, and :attr:`Trajectory.point_listeners`
+are called with its ``PointIndices`` entry (if not -1): a detector in
+External mode takes one frame per call, as a controller's position compare
+would trigger it.
 """
 
 from __future__ import annotations
 
 import asyncio
+import os
 from collections.abc import Callable
 
 import numpy as np
 from softioc import builder
 
 TICK = 0.01  # seconds between position updates of a move
+
+#: bytes of the largest array the IOC serves (50,000 doubles and more)
+MAX_ARRAY_BYTES = 1_000_000
 
 
 class Motor:
@@ -55,6 +73,9 @@ class Motor:
         self.hlm = builder.aOut("HLM", initial_value=high, PREC=3, on_update=self._high)
         self.llm = builder.aOut("LLM", initial_value=low, PREC=3, on_update=self._low)
         self.stop = builder.longOut("STOP", initial_value=0, on_update=self._stop)
+        self.vmax = builder.aOut(
+            "VMAX", initial_value=1000.0, EGU="mm/s", PREC=3, DRVL=0, DRVH=1e6
+        )
         builder.stringIn("EGU", initial_value="mm")
         self.stopped = False
 
@@ -98,9 +119,13 @@ class Motor:
 class Trajectory:
     """pmac-like trajectory scan over two axes."""
 
-    MAX_POINTS = 1000
+    #: profile points it holds (each array's length)
+    MAX_POINTS = 50_000
 
     def __init__(self, prefix: str, axes: dict[str, Motor]) -> None:
+        # arrays above EPICS' default 16 kB: set before iocInit reads it
+        if int(os.environ.get("EPICS_CA_MAX_ARRAY_BYTES", "0")) < MAX_ARRAY_BYTES:
+            os.environ["EPICS_CA_MAX_ARRAY_BYTES"] = str(MAX_ARRAY_BYTES)
         builder.SetDeviceName(f"{prefix}:TRAJ")
         self.axes = axes
         zeros = np.zeros(self.MAX_POINTS)
@@ -109,7 +134,10 @@ class Trajectory:
             for axis in axes
         }
         self.times = builder.WaveformOut(
-            "Times", np.zeros(self.MAX_POINTS, dtype=np.int32), EGU="ms"
+            "Times", np.zeros(self.MAX_POINTS, dtype=np.int32), EGU="us"
+        )
+        self.indices = builder.WaveformOut(
+            "PointIndices", np.arange(self.MAX_POINTS, dtype=np.int32)
         )
         self.num_points = builder.longOut(
             "NumPoints", initial_value=0, DRVL=0, DRVH=self.MAX_POINTS
@@ -147,10 +175,11 @@ class Trajectory:
             on_update=self._abort,
             always_update=True,
         )
-        self.built: tuple[dict[str, np.ndarray], np.ndarray] | None = None
+        self.built: tuple[dict[str, np.ndarray], np.ndarray, np.ndarray] | None = None
         self.aborted = False
-        #: called with a point's index each time the trajectory reaches it
-        #: (the way a motion controller's position compare triggers a detector)
+        #: called with the ``PointIndices`` entry (the scan point's index) of
+        #: each profile point reached whose entry is not -1 (the way a motion
+        #: controller's position compare triggers a detector)
         self.point_listeners: list[Callable[[int], None]] = []
 
     def _build(self, value: int) -> None:
@@ -159,11 +188,16 @@ class Trajectory:
         self.build_status.set(0)
         n = int(self.num_points.get())
         times = np.asarray(self.times.get())[:n]
+        indices = np.asarray(self.indices.get())[:n]
         positions = {a: np.asarray(r.get())[:n] for a, r in self.positions.items()}
         problem = ""
         if n < 1:
             problem = "NumPoints must be at least 1"
-        elif len(times) < n or any(len(p) < n for p in positions.values()):
+        elif (
+            len(times) < n
+            or len(indices) < n
+            or any(len(p) < n for p in positions.values())
+        ):
             problem = "fewer array values than NumPoints"
         elif np.any(times <= 0):
             problem = "every time must be positive"
@@ -172,7 +206,7 @@ class Trajectory:
             self.build_message.set(problem)
             self.build_status.set(2)
             return
-        self.built = (positions, times)
+        self.built = (positions, times, indices)
         self.build_message.set(f"built {n} points")
         self.build_status.set(1)
 
@@ -186,7 +220,7 @@ class Trajectory:
         if self.built is None:
             self.exec_status.set(2)
             return
-        positions, times = self.built
+        positions, times, indices = self.built
         self.aborted = False
         self.exec_status.set(0)
         self.exec_state.set(1)
@@ -194,8 +228,8 @@ class Trajectory:
         loop = asyncio.get_running_loop()
         deadline = loop.time()
         try:
-            for i, ms in enumerate(times):
-                deadline += ms / 1000.0
+            for i, us in enumerate(times):
+                deadline += us / 1e6
                 await asyncio.sleep(max(0.0, deadline - loop.time()))
                 if self.aborted:
                     self.exec_status.set(2)
@@ -203,8 +237,10 @@ class Trajectory:
                 for axis, motor in self.axes.items():
                     motor.place(float(positions[axis][i]))
                 self.scanned.set(i + 1)
-                for listener in self.point_listeners:
-                    listener(i)
+                index = int(indices[i])
+                if index >= 0:
+                    for listener in self.point_listeners:
+                        listener(index)
             self.exec_status.set(1)
         finally:
             self.exec_state.set(0)

@@ -50,9 +50,9 @@ def test_every_attribute_type_is_read_from_the_ioc(ioc):
             traj = process.get_block("TRAJ")
             assert isinstance(traj.positionsA.meta, NumberArrayMeta)
             assert traj.positionsA.meta.dtype == "float64"
-            assert len(traj.positionsA.value) == 1000  # the waveform's NELM
+            assert len(traj.positionsA.value) == 50_000  # the waveform's NELM
             assert traj.times.meta.dtype == "int32"
-            assert traj.times.meta.display["units"] == "ms"
+            assert traj.times.meta.display["units"] == "us"
             # ca.Action: a method
             assert "buildProfile" in traj and "stop" in process.get_block("M1")
             # the motor's limits are VAL's drive limits
@@ -183,8 +183,8 @@ def test_what_the_pv_cannot_take_is_refused_before_writing(ioc):
             raw = epics.caget(f"{PREFIX}:HDF:FileName_RBV", as_string=True)
             assert raw == "keep"
             before = traj.positionsA.value
-            with pytest.raises(Exception, match="1001 values do not fit in 1000"):
-                await process.put(["TRAJ", "positionsA"], np.zeros(1001))
+            with pytest.raises(Exception, match="50001 values do not fit in 50000"):
+                await process.put(["TRAJ", "positionsA"], np.zeros(50_001))
             assert traj.positionsA.value == before
 
     run(scenario())

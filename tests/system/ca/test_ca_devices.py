@@ -23,14 +23,15 @@ def test_a_trajectory_is_built_and_executed_in_time(ioc):
             await put(["TRAJ", "positionsB"], np.array([-1.0, -2.0, -3.0, -4.0]))
             await put(["TRAJ", "times"], np.array([0, 5, 5, 5], dtype=np.int32))
             await put(["TRAJ", "numPoints"], 4)
-            # a time of 0 ms: the build fails, and says why
+            # a time of 0 us: the build fails, and says why
             with pytest.raises(ChannelError) as info:
                 await process.post(["TRAJ", "buildProfile"])
             message = str(info.value)
             assert message.startswith("TRAJ.buildProfile: ")
             assert "'Failure'" in message and "every time must be positive" in message
             assert traj.buildStatus.value == "Failure"
-            await put(["TRAJ", "times"], np.array([20, 20, 20, 20], dtype=np.int32))
+            times = np.array([20, 20, 20, 20], dtype=np.int32) * 1000  # us
+            await put(["TRAJ", "times"], times)
             await process.post(["TRAJ", "buildProfile"])
             assert traj.buildStatus.value == "Success"
             scanned = follow(process, "TRAJ", "pointsScanned")

@@ -1,0 +1,123 @@
+"""The MotorControllerManager on the simulated IOC: lines and snake grids as
+trajectories with a run-up, the raw file, and validate's refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from malcolm.core import MalcolmError
+
+from .conftest import follow, run
+from .motormgr import MRI, line, manager_process, read_file, snake
+
+
+def test_a_line_runs_as_a_trajectory_into_the_file(ioc, tmp_path):
+    process = manager_process()
+
+    async def scenario():
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            assert block.state.value == "Ready"
+            assert list(block.simultaneousAxes.value) == ["x", "y"]
+            m1 = process.get_block(f"{MRI}:a")
+            positions = follow(process, f"{MRI}:a", "position")
+            await process.post(
+                [MRI, "configure"],
+                {"generator": line(20, 1.0, 3.0), "fileDir": str(tmp_path)},
+            )
+            assert block.state.value == "Armed"
+            # the run-up: half a step before the first point, less the
+            # acceleration distance (0.1 s at 2.0/19 per 0.01 s)
+            speed = (2.0 / 19) / 0.01
+            assert m1.position.value == pytest.approx(1.0 - 1 / 19 - speed * 0.05)
+            rows = block.datasets.value
+            assert list(rows["name"]) == ["x.value_set", "x.value"]
+            assert list(rows["type"]) == ["position_set", "position_value"]
+            assert list(rows["filename"]) == ["motors.h5"] * 2
+            assert list(rows["rank"]) == [0, 0]
+            assert list(rows["uniqueid"]) == ["/entry/uniqueid"] * 2
+            await process.post([MRI, "run"])
+            assert block.state.value == "Finished"
+            assert block.completedSteps.value == 20
+            # the motor ends at the end of the last point
+            assert m1.position.value == pytest.approx(3.0 + 1 / 19)
+            assert min(positions) < 1.0  # it started before the first point
+        finally:
+            await process.stop()
+
+    run(scenario())
+    data = read_file(str(tmp_path / "motors.h5"), ["x"])
+    assert list(data["uniqueid"]) == list(range(1, 21))
+    assert np.allclose(data["x.value_set"], np.linspace(1.0, 3.0, 20))
+    assert np.allclose(data["x.value"], data["x.value_set"], atol=1e-3)
+
+
+def test_a_snake_grid_turns_round_between_rows(ioc, tmp_path):
+    process = manager_process()
+
+    async def scenario():
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            m1, m2 = process.get_block(f"{MRI}:a"), process.get_block(f"{MRI}:b")
+            await process.post(
+                [MRI, "configure"],
+                {"generator": snake(3, 5), "fileDir": str(tmp_path)},
+            )
+            traj = process.get_block(f"{MRI}:traj")
+            # 15 points: run-up, midpoint and end of each, two turnarounds
+            assert traj.numPoints.value == 1 + 2 * 15 + 2
+            assert sorted(block.datasets.value["name"]) == [
+                "x.value",
+                "x.value_set",
+                "y.value",
+                "y.value_set",
+            ]
+            await process.post([MRI, "run"])
+            assert block.state.value == "Finished"
+            # the third row runs forwards again: it ends half a step past x=2
+            assert m1.position.value == pytest.approx(2.25)
+            assert m2.position.value == pytest.approx(1.0)
+        finally:
+            await process.stop()
+
+    run(scenario())
+    data = read_file(str(tmp_path / "motors.h5"), ["x", "y"])
+    assert list(data["uniqueid"]) == list(range(1, 16))
+    xs = [0.0, 0.5, 1.0, 1.5, 2.0]
+    assert np.allclose(data["x.value_set"], xs + xs[::-1] + xs)
+    assert np.allclose(data["y.value_set"], [0.0] * 5 + [0.5] * 5 + [1.0] * 5)
+    for axis in ("x", "y"):
+        assert np.allclose(data[f"{axis}.value"], data[f"{axis}.value_set"], atol=1e-3)
+
+
+def test_validate_refuses_a_point_faster_than_the_motor_names_the_axis(ioc):
+    process = manager_process()
+
+    async def scenario():
+        await process.start()
+        try:
+            await process.put([f"{MRI}:a", "maxVelocity"], 50.0)
+            fast = line(11, 0.0, 10.0, duration=0.01)  # 1 mm in 10 ms: 100 mm/s
+            with pytest.raises(MalcolmError) as info:
+                await process.post([MRI, "validate"], {"generator": fast})
+            message = str(info.value)
+            assert f"axis x ({MRI}:a) needs 100/s" in message
+            assert "maximum velocity 50/s" in message
+            with pytest.raises(MalcolmError, match="axis x"):
+                await process.post([MRI, "configure"], {"generator": fast})
+            assert process.get_block(MRI).state.value == "Ready"  # refused
+            # slow enough: taken
+            slow = line(11, 0.0, 10.0, duration=0.05)
+            await process.post([MRI, "validate"], {"generator": slow})
+            # outside the motor's limits: refused too
+            far = line(11, 0.0, 150.0, duration=1.0)
+            with pytest.raises(MalcolmError, match=r"axis x .*outside its limits"):
+                await process.post([MRI, "validate"], {"generator": far})
+        finally:
+            await process.put([f"{MRI}:a", "maxVelocity"], 1000.0)
+            await process.stop()
+
+    run(scenario())
