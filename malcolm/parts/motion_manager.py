@@ -10,11 +10,11 @@ manager's scan over a ``pmac.TrajectoryScan`` child and two
   the scan's motors to the run-up start at their velocity, writes the
   arrays and builds it (a build Failure fails with the BuildMessage); it
   creates the raw file (:mod:`.motion_file`) and fills ``datasets``;
-- **run** executes the profile: progress from ``pointsScanned``; the
-  readback of each point is the motor readback last received before
-  ``pointsScanned`` passed the point's midpoint (one IOC's CA events arrive
-  in order); rows go to the file, in a worker thread, when the run ends,
-  pauses, fails or is aborted;
+- **run** executes the profile: progress from ``pointsScanned``; once the
+  execution ends (or is stopped by a pause or an abort) the IOC posts the
+  motors' readbacks at each profile point reached (``readbacksA``/``B``),
+  and a row per point reached goes to the file (in a worker thread): its
+  demand and the readback at its midpoint;
 - **pause** aborts the profile; **seek** prepares the run from the new step;
   **abort** aborts the profile and stops the motors; **reset** waits (up
   to ``RECONNECT_WAIT`` s) for the children to be connected and fails,
@@ -52,7 +52,8 @@ CHECK_CHUNK = 65536
 class MotionTrajectoryPart(Part):
     """Runs a scan's axes ``axis_a``/``axis_b`` as a trajectory of the
     child ``trajectory`` moving the motor children ``motor_a``/``motor_b``
-    (children named as in the definition: mri ``<block mri>:<name>``)."""
+    (children named as in the definition: mri ``<block mri>:<name>``);
+    ``max_points`` is the length of the controller's arrays."""
 
     def __init__(
         self,
@@ -62,17 +63,21 @@ class MotionTrajectoryPart(Part):
         trajectory: str = "traj",
         motor_a: str = "a",
         motor_b: str = "b",
+        max_points: int = 50_000,
     ) -> None:
         super().__init__(name)
+        if int(max_points) < 3:
+            raise ValueError(f"max_points must be at least 3, not {max_points}")
+        self.max_points = int(max_points)
         if axis_a and axis_a == axis_b:
             raise ValueError(f"axis_a and axis_b are both {axis_a!r}")
         self._names = (trajectory, motor_a, motor_b)
         self._axis_names = (axis_a, axis_b)
         self.profile: Profile | None = None
         self.file: MotionFile | None = None
-        #: (step, profile point) of each point reached, not yet written
-        self._rows: list[tuple[int, int]] = []
-        self._history: _History | None = None
+        #: the profile last executed and the time stamps of the readbacks
+        #: before it, until its rows are written
+        self._executed: tuple[Profile, dict[str, float]] | None = None
 
     # ---- set up
     def setup(self, registrar: PartRegistrar) -> None:
@@ -114,7 +119,7 @@ class MotionTrajectoryPart(Part):
         return [a for a in points.axes if a in self.axes]
 
     def _capacity(self) -> int:
-        return len(self._value(self.traj, "positionsA"))
+        return self.max_points
 
     def _where(self, axis: str) -> str:
         return f"{self.controller.mri}: axis {axis} ({self.axes[axis][1]})"
@@ -184,7 +189,7 @@ class MotionTrajectoryPart(Part):
     # ---- configure and prepare a run
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
-        self._rows = []
+        self._executed = None
         self.profile = None
         moved = self._moved(device.points)
         file_dir = str(device.params.get("fileDir") or "")
@@ -265,52 +270,28 @@ class MotionTrajectoryPart(Part):
         profile = self.profile
         if profile is None:
             return
-        moved = list(profile.positions)
         state = {
-            "entry": 0,
             "fresh": self._value(self.traj, "pointsScanned") == 0,
             "done": profile.start_step,
         }
-        history = self._history = _History(
-            {a: float(self._value(self.axes[a][1], "position")) for a in moved}
-        )
+        # the readbacks the IOC posts when this execution ends are newer
+        self._executed = (profile, self._readback_stamps(profile))
 
-        def on_rbv(attr: Any, axis: str) -> None:
-            history.readback(axis, *_reading(attr))
-
-        def on_scanned(attr: Any) -> None:
-            stamp, value = _reading(attr)
-            scanned = int(value)
+        def on_scanned(scanned: int) -> None:
             if scanned == 0:
                 state["fresh"] = True
-                state["entry"] = 0
-                history.restart()
             elif state["fresh"]:
-                history.scanned(stamp, scanned)
-                self._take(task, profile, state, scanned)
+                done = int(profile.done_after[min(scanned, profile.size) - 1])
+                if done > state["done"]:
+                    state["done"] = done
+                    task.report_progress(done)
 
-        process = task.process
-        subs = [
-            process.subscribe([self.axes[a][1], "position"], _args(on_rbv, a), False)
-            for a in moved
-        ]
-        subs.append(process.subscribe([self.traj, "pointsScanned"], on_scanned, False))
-        failed = True
+        sid = task.subscribe((self.traj, "pointsScanned"), on_scanned)
         try:
-            await self._checked(process.post([self.traj, "executeProfile"]))
-            await self._checked(
-                task.wait_all(
-                    task.when_matches((self.traj, "pointsScanned"), profile.size),
-                    timeout=LAST_EVENT_WAIT,
-                )
-            )
-            self._take(task, profile, state, profile.size)
-            failed = False
+            await self._checked(task.process.post([self.traj, "executeProfile"]))
         finally:
-            for sub in subs:
-                process.unsubscribe(sub)
-            if not failed or not _cancelled():
-                await self._flush()
+            task.unsubscribe(sid)
+        await self._checked(self._write_reached())
 
     async def _checked(self, awaitable: Any) -> Any:
         """``awaitable``'s result; a lost channel raises an error naming what
@@ -322,35 +303,46 @@ class MotionTrajectoryPart(Part):
             what = ", ".join(lost) or self.traj
             raise MalcolmError(f"lost {what}: {e}") from None
 
-    def _take(
-        self, task: Task, profile: Profile, state: dict[str, Any], scanned: int
-    ) -> None:
-        """Profile points ``state['entry'] .. scanned-1`` were reached."""
-        first, stop = state["entry"], min(scanned, profile.size)
-        if stop <= first:
-            return
-        points = profile.point_of[first:stop]
-        for entry in np.flatnonzero(points >= 0) + first:
-            self._rows.append((int(profile.point_of[entry]), int(entry)))
-        state["entry"] = stop
-        done = int(profile.done_after[stop - 1])
-        if done > state["done"]:
-            state["done"] = done
-            task.report_progress(done)
+    def _readbacks(self, profile: Profile) -> dict[str, Any]:
+        """Scan axis -> the trajectory's readbacks attribute of its axis."""
+        block = self.controller.process.get_block(self.traj)
+        return {a: block[f"readbacks{self.axes[a][0]}"] for a in profile.positions}
 
-    async def _flush(self) -> None:
-        """Write the rows reached so far to the file (in a worker thread)."""
-        rows, self._rows = self._rows, []
-        profile, file, history = self.profile, self.file, self._history
-        if file is None or profile is None or history is None or not rows:
+    def _readback_stamps(self, profile: Profile) -> dict[str, float]:
+        return {
+            a: attr.timeStamp.to_time() for a, attr in self._readbacks(profile).items()
+        }
+
+    async def _write_reached(self) -> None:
+        """Once the IOC has posted the readbacks of the execution that ended,
+        write a row per point it reached (in a worker thread)."""
+        executed = self._executed
+        if executed is None:
             return
-        steps = np.array([r[0] for r in rows], dtype=np.int64)
-        entries = np.array([r[1] for r in rows], dtype=np.int64)
+        profile, before = executed
+        attrs = self._readbacks(profile)
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + LAST_EVENT_WAIT
+        while any(attrs[a].timeStamp.to_time() <= before[a] for a in attrs):
+            if loop.time() > deadline:
+                raise MalcolmError(
+                    f"{self.traj}: no readbacks within {LAST_EVENT_WAIT} s of the"
+                    " end of the execution"
+                )
+            await asyncio.sleep(0.005)
+        values = {a: np.asarray(attr.value, dtype=float) for a, attr in attrs.items()}
+        reached = min(len(v) for v in values.values())
+        entries = np.flatnonzero(profile.point_of[:reached] >= 0)
+        file = self.file
+        self._executed = None  # from here on, written once even if cancelled
+        if file is None or not len(entries):
+            return
+        steps = profile.point_of[entries].astype(np.int64)
         offsets = steps - profile.start_step
         demands = {a: profile.demands[a][offsets] for a in file.axes}
-        readbacks = history.readbacks(entries, file.axes)
+        readbacks = {a: values[a][entries] for a in file.axes}
         uid = (steps + 1).astype(np.int32)
-        await asyncio.to_thread(file.append, uid, demands, readbacks)
+        await asyncio.shield(asyncio.to_thread(file.append, uid, demands, readbacks))
 
     # ---- pause, abort, reset
     async def _stop_profile(self, task: Task) -> None:
@@ -360,7 +352,7 @@ class MotionTrajectoryPart(Part):
     @RunnableDevice.Pause
     async def pause(self, task: Task, device: Any) -> None:
         await self._stop_profile(task)
-        await self._flush()
+        await self._write_reached()
 
     @RunnableDevice.Abort
     async def abort(self, task: Task, device: Any) -> None:
@@ -371,7 +363,7 @@ class MotionTrajectoryPart(Part):
             if not self._value(motor, "doneMoving")
         ]
         await asyncio.gather(*moving)
-        await self._flush()
+        await self._write_reached()
 
     def _children(self) -> list[str]:
         return [self.traj] + [motor for _, motor in self.axes.values()]
@@ -381,7 +373,7 @@ class MotionTrajectoryPart(Part):
 
     @RunnableDevice.Reset
     async def reset(self, task: Task, device: Any) -> None:
-        self._rows = []
+        self._executed = None
         self.profile = None
         loop = asyncio.get_running_loop()
         deadline = loop.time() + RECONNECT_WAIT
@@ -394,63 +386,3 @@ class MotionTrajectoryPart(Part):
                     "; ".join(f"{m}: {self._value(m, 'health')}" for m in lost)
                 )
             await asyncio.sleep(0.05)
-
-
-class _History:
-    """The IOC time stamps of an execution's readbacks and of its progress,
-    so that a point's readback is the last one the IOC made before it made
-    ``pointsScanned`` pass the point, however CA delivered or merged them."""
-
-    def __init__(self, start: dict[str, float]) -> None:
-        self.start = dict(start)
-        self.restart()
-
-    def restart(self) -> None:
-        self.rbv: dict[str, tuple[list[float], list[float]]] = {
-            a: ([float("-inf")], [v]) for a, v in self.start.items()
-        }
-        self.progress: tuple[list[float], list[int]] = ([], [])
-
-    def readback(self, axis: str, stamp: float, value: Any) -> None:
-        stamps, values = self.rbv[axis]
-        stamps.append(stamp)
-        values.append(float(value))
-
-    def scanned(self, stamp: float, value: int) -> None:
-        self.progress[0].append(stamp)
-        self.progress[1].append(value)
-
-    def readbacks(self, entries: np.ndarray, axes: list[str]) -> dict[str, np.ndarray]:
-        """Each axis's readback when profile points ``entries`` were reached."""
-        stamps, counts = (np.asarray(x) for x in self.progress)
-        order = np.argsort(stamps, kind="stable")
-        stamps, counts = stamps[order], np.maximum.accumulate(counts[order])
-        if len(counts):
-            at = np.minimum(
-                np.searchsorted(counts, entries + 1, "left"), len(counts) - 1
-            )
-            when = stamps[at]
-        else:
-            when = np.full(len(entries), np.inf)
-        out = {}
-        for axis in axes:
-            rbv_stamps, values = (np.asarray(x) for x in self.rbv[axis])
-            order = np.argsort(rbv_stamps, kind="stable")
-            rbv_stamps, values = rbv_stamps[order], values[order]
-            out[axis] = values[np.searchsorted(rbv_stamps, when, "right") - 1]
-        return out
-
-
-def _reading(attr: Any) -> tuple[float, Any]:
-    """(IOC time stamp in seconds, value) of an attribute as subscribed."""
-    stamp = attr["timeStamp"]
-    return stamp["secondsPastEpoch"] + stamp["nanoseconds"] * 1e-9, attr["value"]
-
-
-def _args(func: Any, *args: Any) -> Any:
-    return lambda value: func(value, *args)
-
-
-def _cancelled() -> bool:
-    task = asyncio.current_task()
-    return task is not None and bool(task.cancelling())

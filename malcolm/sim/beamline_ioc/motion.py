@@ -17,8 +17,11 @@ none; by default each profile point announces its own index),
 says Success or Failure, ``BuildMessage_RBV`` why),
 ``ExecuteProfile`` (walks the built points in time, moving the motors of
 axes A and B; a put completes at the end), ``ExecuteStatus_RBV``,
-``ExecuteState_RBV`` (Done/Executing), ``PointsScanned_RBV`` (progress)
-and ``AbortProfile``.
+``ExecuteState_RBV`` (Done/Executing), ``PointsScanned_RBV`` (progress),
+``ReadbacksA``/``ReadbacksB`` (each motor's RBV as each profile point was
+reached, posted once an execution ends, aborted or not, before
+``ExecuteState_RBV`` says Done: the motor module's trajectoryScan
+``M1Readbacks`` after its ``ReadbackProfile``) and ``AbortProfile``.
 
 It holds :attr:`Trajectory.MAX_POINTS` (50,000) profile points, enough for a
 10,000-point scan (two profile points per scan point, plus the run-up and
@@ -152,6 +155,10 @@ class Trajectory:
             "ExecuteState_RBV", "Done", "Executing", initial_value=0
         )
         self.scanned = builder.longIn("PointsScanned_RBV", initial_value=0)
+        self.readbacks = {
+            axis: builder.WaveformIn(f"Readbacks{axis}", zeros, EGU="mm", PREC=3)
+            for axis in axes
+        }
         builder.boolOut(
             "BuildProfile",
             ZNAM="Done",
@@ -227,6 +234,8 @@ class Trajectory:
         self.scanned.set(0)
         loop = asyncio.get_running_loop()
         deadline = loop.time()
+        readbacks = {axis: np.full(len(times), np.nan) for axis in self.axes}
+        reached = 0
         try:
             for i, us in enumerate(times):
                 deadline += us / 1e6
@@ -236,11 +245,15 @@ class Trajectory:
                     return
                 for axis, motor in self.axes.items():
                     motor.place(float(positions[axis][i]))
-                self.scanned.set(i + 1)
+                    readbacks[axis][i] = motor.rbv.get()
+                reached = i + 1
+                self.scanned.set(reached)
                 index = int(indices[i])
                 if index >= 0:
                     for listener in self.point_listeners:
                         listener(index)
             self.exec_status.set(1)
         finally:
+            for axis, record in self.readbacks.items():
+                record.set(readbacks[axis][:reached])
             self.exec_state.set(0)
