@@ -116,6 +116,7 @@ class DeviceChildPart(RunnableChildPart):
         super().__init__(name, target)
         self.started = asyncio.Event()
         self._watches: list[Any] = []
+        self._child_state: Any = None
         self._abort_fut: asyncio.Future[Any] | None = None
 
     @property
@@ -254,8 +255,11 @@ class DeviceChildPart(RunnableChildPart):
         ]
 
     def _on_child_state(self, state: Any) -> None:
+        # only a move into Fault counts: a child found in Fault when the
+        # watch starts is reset by Configure, as RunnableChildPart does
+        before, self._child_state = self._child_state, state
         controller = self._controller
-        if state != "Fault" or controller is None:
+        if state != "Fault" or before in (None, "Fault") or controller is None:
             return
         if controller.block.state.value in _QUIET_STATES:
             return

@@ -251,3 +251,21 @@ def test_a_bad_file_template_is_refused_naming_it(tmp_path):
         assert devices["DET"].got == {}
 
     run(scenario)
+
+
+def test_a_child_already_in_fault_is_reset_by_configure(tmp_path):
+    async def scenario():
+        p, devices = await make(tmp_path)
+        devices["DET"].fail_at = 0
+        await p.post(["BL:DET", "configure"], {"generator": spiral()})
+        with pytest.raises(MalcolmError):
+            await p.post(["BL:DET", "run"])
+        assert p.get(["BL:DET", "state", "value"]) == "Fault"
+        devices["DET"].fail_at = None
+        await p.post(["BL", "configure"], {"generator": spiral()})
+        assert p.get(["BL", "state", "value"]) == "Armed"
+        assert p.get(["BL:DET", "state", "value"]) == "Armed"
+        await p.post(["BL", "run"])
+        assert p.get(["BL", "state", "value"]) == "Finished"
+
+    run(scenario)
