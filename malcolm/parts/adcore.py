@@ -28,7 +28,21 @@ __all__ = [
     "MotorPart",
     "PosPluginPart",
     "ZebraPart",
+    "positions_xml",
 ]
+
+
+def positions_xml(start: int, stop: int) -> str:
+    """NDPosPlugin XML tagging frames with point indices ``start..stop-1``
+    (dimension ``n``), built without a Python loop per point."""
+    rows = ""
+    if stop > start:
+        body = '"/><position n="'.join(map(str, range(start, stop)))
+        rows = f'<position n="{body}"/>'
+    return (
+        '<pos_layout><dimensions><dimension name="n"/></dimensions>'
+        f"<positions>{rows}</positions></pos_layout>"
+    )
 
 
 @Controls(PositionPlugin)
@@ -46,11 +60,7 @@ class PosPluginPart(ChildPart):
 
     def _generate_xml(self, start: int, num: int) -> str:
         """The NDPosPlugin XML for positions ``start`` .. ``start + num - 1``."""
-        rows = "".join(f'<position n="{i}"/>' for i in range(start, start + num))
-        return (
-            '<pos_layout><dimensions><dimension name="n"/></dimensions>'
-            f"<positions>{rows}</positions></pos_layout>"
-        )
+        return positions_xml(start, start + num)
 
     def _next_xml(self, device: Any) -> str | None:
         num = min(self.batch, device.totalSteps - self._loaded)

@@ -44,9 +44,10 @@ from malcolm.fsm import RunnableDevice
 from malcolm.hooks import BlockView, Task
 from malcolm.io import ChannelError
 
+from .adcore import positions_xml
 from .base import Part, PartRegistrar
 
-__all__ = ["DetectorManagerPart", "datasets_meta", "positions_xml"]
+__all__ = ["DetectorManagerPart", "datasets_meta"]
 
 #: trigger modes of the driver
 TRIGGER_MODES = ("Internal", "External")
@@ -76,15 +77,6 @@ def datasets_meta() -> TableMeta:
         },
         "Datasets this device writes in a scan",
         tags=("widget:table",),
-    )
-
-
-def positions_xml(start: int, stop: int) -> str:
-    """NDPosPlugin XML tagging frames with point indices ``start..stop-1``."""
-    body = '"/><position n="'.join(map(str, range(start, stop)))
-    return (
-        '<pos_layout><dimensions><dimension name="n"/></dimensions>'
-        f'<positions><position n="{body}"/></positions></pos_layout>'
     )
 
 
@@ -122,6 +114,7 @@ class DetectorManagerPart(Part):
         self._end = 0  # where the armed run stops
         self._topping = False
         self._file = ""
+        self._mode = ""  # the trigger mode of the scan configured
 
     # ---- fields
     def setup(self, registrar: PartRegistrar) -> None:
@@ -160,7 +153,9 @@ class DetectorManagerPart(Part):
 
     @property
     def external(self) -> bool:
-        return self.trigger_mode.value == "External"
+        """Whether the scan configured (else the attribute) is External: a
+        change of ``triggerMode`` applies from the next configure."""
+        return (self._mode or self.trigger_mode.value) == "External"
 
     def _view(self, key: str) -> BlockView:
         process = self._controller.process
@@ -180,7 +175,7 @@ class DetectorManagerPart(Part):
 
     # ---- errors
     def _lost(self, task: Task) -> str:
-        """The children whose health is not OK, with it."""
+        """The children whose health is not OK, each with its first problem."""
         bad = []
         for mri in self.mris.values():
             try:
@@ -188,8 +183,10 @@ class DetectorManagerPart(Part):
             except LookupError:
                 health = "no such block"
             if health != "OK":
-                bad.append(f"{mri}: {health}")
-        return "; ".join(bad)
+                problems = str(health).split("; ")
+                more = f" and {len(problems) - 1} more" if len(problems) > 1 else ""
+                bad.append(f"{mri} ({problems[0]}{more})")
+        return ", ".join(bad)
 
     def _failed(self, task: Task, e: Exception) -> MalcolmError:
         lost = self._lost(task)
@@ -214,7 +211,7 @@ class DetectorManagerPart(Part):
             raise BadValueError(
                 f"{self._mri}.configure.formatName: {name!r} is not a file name"
             )
-        if not self.external:
+        if self.trigger_mode.value != "External":
             exposure = float(device.params.get("exposure") or 0.0)
             points = device.points
             duration = points.duration_at(0) if points is not None else None
@@ -229,25 +226,38 @@ class DetectorManagerPart(Part):
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
         try:
-            await self._stop_all(task)
+            if self._armed or self._busy or self._children_busy():
+                await self._stop_all(task)
             file_dir = str(device.params.get("fileDir") or "")
             name = str(device.params.get("formatName") or "")
             self._file = f"{name}.h5" if file_dir else ""
-            await self._setup(task, device, file_dir, name)
+            self._mode = self.trigger_mode.value
+            settings = self._settings(device, file_dir, name)
             self._show_datasets(name)
-            await self._arm(task, device, 0, device.configuredSteps, fresh=True)
+            await self._arm(task, 0, device.configuredSteps, True, settings)
         except ChannelError as e:
             raise self._failed(task, e) from e
 
-    async def _setup(self, task: Task, device: Any, file_dir: str, name: str) -> None:
+    def _children_busy(self) -> bool:
+        """Whether the driver acquires, the plugin runs or the writer
+        captures (left so by someone else, or by a scan that faulted)."""
+        return bool(
+            self.drv.detectorState.value != "Idle"
+            or self.pos.running.value
+            or self.hdf.capture.value
+        )
+
+    def _settings(self, device: Any, file_dir: str, name: str) -> dict[Any, Any]:
+        """The driver's and writer's settings for the scan."""
         drv, hdf = self.drv, self.hdf
         exposure = max(self._exposure(device, 0), MIN_EXPOSURE)
         puts = {
             drv.exposure: exposure,
             drv.acquirePeriod: exposure,
             drv.imageMode: "Multiple",
-            drv.triggerMode: self.trigger_mode.value,
+            drv.triggerMode: self._mode,
             drv.arrayCallbacks: True,
+            hdf.enableCallbacks: bool(file_dir),
         }
         if file_dir:
             puts.update(
@@ -255,12 +265,24 @@ class DetectorManagerPart(Part):
                     hdf.filePath: file_dir.rstrip("/") + "/",
                     hdf.fileName: name,
                     hdf.fileTemplate: "%s%s.h5",
-                    hdf.enableCallbacks: True,
                 }
             )
-        else:
-            puts[hdf.enableCallbacks] = False
-        await task.put(puts)
+        return puts
+
+    @staticmethod
+    def _changed(puts: dict[Any, Any]) -> dict[Any, Any]:
+        """The settings the children do not hold already (each put is a CA
+        round trip)."""
+        changed = {}
+        for view, value in puts.items():
+            now = view.value
+            if isinstance(value, float) and isinstance(now, float):
+                same = abs(now - value) <= 1e-9 * max(1.0, abs(value))
+            else:
+                same = now == value
+            if not same:
+                changed[view] = value
+        return changed
 
     def _show_datasets(self, name: str) -> None:
         rows = []
@@ -286,10 +308,18 @@ class DetectorManagerPart(Part):
             self._loaded = stop
 
     async def _arm(
-        self, task: Task, device: Any, start: int, end: int, fresh: bool
+        self,
+        task: Task,
+        start: int,
+        end: int,
+        fresh: bool = False,
+        settings: dict[Any, Any] | None = None,
     ) -> None:
         """Make the children wait for the frames of points ``start..end-1``:
-        plugins first, then (External) the driver."""
+        plugins first, then (External) the driver. A ``fresh`` file is made
+        at once (so a bad fileDir shows now); otherwise the writer appends
+        to the file, opening it at the first frame (so it stays closed while
+        the scan is paused or between runs)."""
         self._armed = False
         self._busy = []
         self._end = end
@@ -298,8 +328,8 @@ class DetectorManagerPart(Part):
             return
         drv, pos, hdf = self.drv, self.pos, self.hdf
         puts = {
+            **(settings or {}),
             drv.numImages: frames,
-            pos.delete: True,
             pos.idStart: start + 1,
             pos.enableCallbacks: True,
         }
@@ -307,7 +337,7 @@ class DetectorManagerPart(Part):
             puts.update(
                 {hdf.numCapture: frames, hdf.append: not fresh, hdf.lazyOpen: not fresh}
             )
-        await task.put(puts)
+        await task.put({pos.delete: True, **self._changed(puts)})
         self._loaded = start
         await self._load(task, min(end, start + self.preload))
         waits = [task.when_matches(pos.running, True, timeout=SETTLE_TIMEOUT)]
@@ -387,7 +417,7 @@ class DetectorManagerPart(Part):
         start, end = int(device.completedSteps), int(device.configuredSteps)
         try:
             if not self._armed:
-                await self._arm(task, device, start, end, fresh=False)
+                await self._arm(task, start, end)
             busy = list(self._busy)
             if not self.external:
                 busy.append(task.put_async(self.drv.acquire, "Acquire"))
@@ -420,7 +450,7 @@ class DetectorManagerPart(Part):
         motion's first trigger before the motion starts."""
         start, end = int(device.completedSteps), int(device.configuredSteps)
         try:
-            await self._arm(task, device, start, end, fresh=False)
+            await self._arm(task, start, end)
         except ChannelError as e:
             raise self._failed(task, e) from e
 
@@ -437,7 +467,7 @@ class DetectorManagerPart(Part):
         start, end = int(device.completedSteps), int(device.configuredSteps)
         try:
             await self._stop_all(task)
-            await self._arm(task, device, start, end, fresh=False)
+            await self._arm(task, start, end)
         except ChannelError as e:
             raise self._failed(task, e) from e
 
@@ -447,6 +477,14 @@ class DetectorManagerPart(Part):
             await self._stop_all(task)
         except ChannelError as e:
             raise self._failed(task, e) from e
+
+    @RunnableDevice.Disable
+    async def disable(self, task: Task, device: Any) -> None:
+        """Let go of the hardware: stop it if it can be reached."""
+        try:
+            await self._stop_all(task)
+        except ChannelError:
+            pass  # unreachable hardware is not acquiring for us either
 
     @RunnableDevice.Reset
     async def reset(self, task: Task, device: Any) -> None:

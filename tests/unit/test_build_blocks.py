@@ -236,6 +236,7 @@ PACKAGE_VALUES = {
     "ADCore.DetectorDriver": {"prefix": "BL"},
     "ADCore.PositionPlugin": {"prefix": "BL"},
     "ADCore.HDFWriter": {"prefix": "BL"},
+    "ADCore.DetectorManager": {"prefix": "BL"},
     "motor.MotorRecord": {"prefix": "BL:M1"},
     "pmac.TrajectoryScan": {"prefix": "BL"},
     "demo.Scan": {"det1": "D1", "det2": "D2", "x": "X", "y": "Y"},

@@ -331,4 +331,3 @@ class HDFWriter(Stoppable):
                 values = file.create_dataset(name, (0,), maxshape=(None,), dtype="f8")
             values.resize(n + 1, axis=0)
             values[n] = float(text)
-        file.flush()

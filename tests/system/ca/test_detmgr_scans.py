@@ -276,3 +276,32 @@ def test_bad_arguments_are_refused_naming_them(ioc, tmp_path):
             await process.stop()
 
     run(scenario())
+
+
+def test_no_file_dir_runs_without_a_file_and_disable_stops_the_hardware(ioc):
+    process = make_manager()
+
+    async def scenario():
+        det = await started(process)
+        try:
+            await process.post(["DET", "configure"], {"generator": line(5)})
+            assert det.datasets.value["name"] == ()  # no file, no datasets
+            hdf = process.get_block("DET:HDF")
+            assert hdf.capture.value is False and hdf.enableCallbacks.value is False
+            await process.post(["DET", "run"])
+            assert det.state.value == "Finished" and det.completedSteps.value == 5
+            # armed External, then disabled: nothing is left waiting
+            await process.put(["DET", "triggerMode"], "External")
+            await process.post(["DET", "configure"], {"generator": line(5)})
+            drv = process.get_block("DET:DRV")
+            assert drv.detectorState.value == "Acquire"
+            await process.post(["DET", "disable"])
+            assert det.state.value == "Disabled"
+            assert drv.detectorState.value == "Idle"
+            assert process.get_block("DET:POS").running.value is False
+            await process.post(["DET", "reset"])
+            assert det.state.value == "Ready"
+        finally:
+            await process.stop()
+
+    run(scenario())
