@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from malcolm.core import NumberArrayMeta, StringArrayMeta, TableMeta
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["MotionFile", "datasets_meta", "datasets_rows"]
 

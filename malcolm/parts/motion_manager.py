@@ -24,9 +24,8 @@ manager's scan over a ``pmac.TrajectoryScan`` child and two
 from __future__ import annotations
 
 import asyncio
+import os
 from typing import TYPE_CHECKING, Any
-
-import numpy as np
 
 from malcolm.core import BadValueError, MalcolmError, StringMeta
 from malcolm.fsm import RunnableDevice
@@ -34,10 +33,14 @@ from malcolm.io.channel import ChannelError
 
 from .base import Part, PartRegistrar
 from .motion_file import MotionFile, datasets_meta, datasets_rows
-from .motion_profile import Profile, ProfileError, build_profile, too_fast
 
 if TYPE_CHECKING:
     from malcolm.hooks import Task
+
+    from .motion_profile import Profile
+
+# numpy and the profile maths load when first used: building blocks (the
+# demo's included) imports this module, and must not import numpy
 
 __all__ = ["MotionTrajectoryPart"]
 
@@ -45,6 +48,8 @@ __all__ = ["MotionTrajectoryPart"]
 RECONNECT_WAIT = 10.0
 #: seconds to wait for the last pointsScanned event after the execution ends
 LAST_EVENT_WAIT = 5.0
+#: seconds between two progress reports (completedSteps) during a run
+PROGRESS_PERIOD = 0.01
 #: steps of the scan checked at a time in validate
 CHECK_CHUNK = 65536
 
@@ -127,11 +132,12 @@ class MotionTrajectoryPart(Part):
     # ---- validate
     @RunnableDevice.Validate
     async def validate(self, task: Task, device: Any) -> dict[str, Any]:
+        mri = self.controller.mri
+        _check_file_args(mri, device.params)
         points = device.points
         moved = self._moved(points)
         if not moved:
             return {}
-        mri = self.controller.mri
         if not points.has_duration:
             raise BadValueError(
                 f"{mri}: the scan gives no duration per point; a trajectory needs one"
@@ -166,6 +172,8 @@ class MotionTrajectoryPart(Part):
         limits: dict[str, tuple[float, float, float]],
     ) -> None:
         """Speeds and limits of every point (in a worker thread)."""
+        from .motion_profile import too_fast
+
         for chunk in points.chunks(CHECK_CHUNK, axes=moved):
             for axis in moved:
                 vmax, low, high = limits[axis]
@@ -218,6 +226,10 @@ class MotionTrajectoryPart(Part):
 
     async def _prepare(self, task: Task, device: Any, start: int) -> None:
         """Build the profile of the run starting at ``start`` and load it."""
+        import numpy as np
+
+        from .motion_profile import ProfileError, build_profile
+
         points = device.points
         moved = self._moved(points)
         self.profile = None
@@ -246,10 +258,6 @@ class MotionTrajectoryPart(Part):
                 f"{self.controller.mri}: steps {start}..{stop - 1} need"
                 f" {profile.size} profile points; the controller holds {capacity}"
             )
-        # the run-up: the scan's motors go to their start, at their velocity
-        await task.put(
-            {(self.axes[a][1], "position"): profile.run_up[a] for a in moved}
-        )
         arrays: dict[Any, Any] = {}
         for axis, (letter, motor) in self.axes.items():
             if axis in profile.positions:
@@ -260,8 +268,21 @@ class MotionTrajectoryPart(Part):
         arrays[(self.traj, "times")] = profile.times
         arrays[(self.traj, "pointIndices")] = profile.indices
         arrays[(self.traj, "numPoints")] = profile.size
-        await task.put(arrays)
-        await task.process.post([self.traj, "buildProfile"])
+
+        async def load() -> None:
+            await task.put(arrays)
+            await task.process.post([self.traj, "buildProfile"])
+
+        # the run-up move (the scan's motors to their start, at their
+        # velocity) and the profile's loading and build at the same time
+        run_up = {(self.axes[a][1], "position"): profile.run_up[a] for a in moved}
+        jobs = [asyncio.ensure_future(task.put(run_up)), asyncio.ensure_future(load())]
+        try:
+            await asyncio.gather(*jobs)
+        except BaseException:
+            for job in jobs:
+                job.cancel()
+            raise
         self.profile = profile
 
     # ---- run
@@ -270,21 +291,27 @@ class MotionTrajectoryPart(Part):
         profile = self.profile
         if profile is None:
             return
-        state = {
-            "fresh": self._value(self.traj, "pointsScanned") == 0,
-            "done": profile.start_step,
-        }
-        # the readbacks the IOC posts when this execution ends are newer
+        done_so_far = [profile.start_step]
+        scanned_attr = self.controller.process.get_block(self.traj)["pointsScanned"]
+        # what the IOC posts from this execution on is newer than these
+        before = scanned_attr.timeStamp.to_time()
         self._executed = (profile, self._readback_stamps(profile))
 
+        loop = asyncio.get_running_loop()
+        reported = [loop.time()]
+
         def on_scanned(scanned: int) -> None:
-            if scanned == 0:
-                state["fresh"] = True
-            elif state["fresh"]:
-                done = int(profile.done_after[min(scanned, profile.size) - 1])
-                if done > state["done"]:
-                    state["done"] = done
-                    task.report_progress(done)
+            if scanned <= 0 or scanned_attr.timeStamp.to_time() <= before:
+                return  # the last execution's count, or this one's start
+            done = int(profile.done_after[min(scanned, profile.size) - 1])
+            now = loop.time()
+            # at most every PROGRESS_PERIOD, and the run's end at once
+            if done > done_so_far[0] and (
+                now - reported[0] >= PROGRESS_PERIOD or done == profile.stop_step
+            ):
+                done_so_far[0] = done
+                reported[0] = now
+                task.report_progress(done)
 
         sid = task.subscribe((self.traj, "pointsScanned"), on_scanned)
         try:
@@ -301,7 +328,7 @@ class MotionTrajectoryPart(Part):
         except ChannelError as e:
             lost = [m for m in self._children() if not self._healthy(m)]
             what = ", ".join(lost) or self.traj
-            raise MalcolmError(f"lost {what}: {e}") from None
+            raise MalcolmError(f"lost connection to {what}: {e}") from None
 
     def _readbacks(self, profile: Profile) -> dict[str, Any]:
         """Scan axis -> the trajectory's readbacks attribute of its axis."""
@@ -316,6 +343,8 @@ class MotionTrajectoryPart(Part):
     async def _write_reached(self) -> None:
         """Once the IOC has posted the readbacks of the execution that ended,
         write a row per point it reached (in a worker thread)."""
+        import numpy as np
+
         executed = self._executed
         if executed is None:
             return
@@ -354,13 +383,26 @@ class MotionTrajectoryPart(Part):
         await self._stop_profile(task)
         await self._write_reached()
 
+    @RunnableDevice.Disable
+    async def disable(self, task: Task, device: Any) -> None:
+        """Let go of the hardware: a profile executing is stopped."""
+        self._executed = None
+        self.profile = None
+        if self._healthy(self.traj):
+            await self._stop_profile(task)
+
     @RunnableDevice.Abort
     async def abort(self, task: Task, device: Any) -> None:
-        await self._stop_profile(task)
+        """Stop the profile and the motors that can be reached (a child whose
+        IOC is lost has nothing to stop), and write the points reached."""
+        if not self._healthy(self.traj):
+            self._executed = None  # its readbacks will not come
+        else:
+            await self._stop_profile(task)
         moving = [
             task.process.post([motor, "stop"])
             for _, motor in self.axes.values()
-            if not self._value(motor, "doneMoving")
+            if self._healthy(motor) and not self._value(motor, "doneMoving")
         ]
         await asyncio.gather(*moving)
         await self._write_reached()
@@ -386,3 +428,27 @@ class MotionTrajectoryPart(Part):
                     "; ".join(f"{m}: {self._value(m, 'health')}" for m in lost)
                 )
             await asyncio.sleep(0.05)
+
+
+def _check_file_args(mri: str, params: dict[str, Any]) -> None:
+    """Refuse a fileDir that cannot take the file, or a formatName that is
+    not a plain file name (BadValueError naming the argument)."""
+    file_dir = str(params.get("fileDir") or "")
+    name = str(params.get("formatName") or "")
+    if not file_dir:
+        return
+    if not name or "/" in name or name in (".", ".."):
+        raise BadValueError(
+            f"{mri}.configure.formatName: {name!r} is not a plain file name"
+        )
+    where = file_dir
+    while not os.path.exists(where):
+        parent = os.path.dirname(where.rstrip("/")) or "."
+        if parent == where:
+            break
+        where = parent
+    if not os.path.isdir(where) or not os.access(where, os.W_OK | os.X_OK):
+        raise BadValueError(
+            f"{mri}.configure.fileDir: cannot write {file_dir!r} ({where!r} is"
+            " not a writeable directory)"
+        )

@@ -239,6 +239,7 @@ PACKAGE_VALUES = {
     "ADCore.DetectorManager": {"prefix": "BL"},
     "motor.MotorRecord": {"prefix": "BL:M1"},
     "pmac.TrajectoryScan": {"prefix": "BL"},
+    "pmac.MotorControllerManager": {"prefix": "BL"},
     "demo.Scan": {"det1": "D1", "det2": "D2", "x": "X", "y": "Y"},
 }
 

@@ -121,3 +121,66 @@ def test_validate_refuses_a_point_faster_than_the_motor_names_the_axis(ioc):
             await process.stop()
 
     run(scenario())
+
+
+def test_a_grid_run_row_by_row_prepares_each_row(ioc, tmp_path):
+    process = manager_process()
+
+    async def scenario():
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            m2 = process.get_block(f"{MRI}:b")
+            params = {
+                "generator": snake(3, 4),
+                "axesToMove": ["x"],
+                "fileDir": str(tmp_path),
+                "formatName": "rows",
+            }
+            await process.post([MRI, "configure"], params)
+            traj = process.get_block(f"{MRI}:traj")
+            assert traj.numPoints.value == 1 + 2 * 4  # one row
+            for row in range(3):
+                assert block.configuredSteps.value == 4 * (row + 1)
+                # Armed for the row: y is at the row's position
+                assert m2.position.value == pytest.approx(0.5 * row)
+                await process.post([MRI, "run"])
+            assert block.state.value == "Finished"
+        finally:
+            await process.stop()
+
+    run(scenario())
+    data = read_file(str(tmp_path / "rows.h5"), ["x", "y"])
+    assert list(data["uniqueid"]) == list(range(1, 13))
+    # y stayed at its row's position while x ran the row
+    assert np.allclose(data["y.value"], np.repeat([0.0, 0.5, 1.0], 4), atol=1e-3)
+    assert np.allclose(data["x.value"], data["x.value_set"], atol=1e-3)
+
+
+def test_file_arguments_that_cannot_work_are_refused_naming_them(ioc, tmp_path):
+    process = manager_process()
+
+    async def scenario():
+        await process.start()
+        try:
+            (tmp_path / "plain").write_text("not a directory")
+            cases = [
+                ({"fileDir": str(tmp_path / "plain" / "sub")}, "fileDir"),
+                ({"fileDir": str(tmp_path), "formatName": "../up"}, "formatName"),
+            ]
+            for extra, named in cases:
+                with pytest.raises(MalcolmError, match=f"configure.{named}: "):
+                    await process.post(
+                        [MRI, "configure"], {"generator": line(5), **extra}
+                    )
+                assert process.get_block(MRI).state.value == "Ready"
+            # a directory that does not exist yet is made
+            where = tmp_path / "new" / "dir"
+            await process.post(
+                [MRI, "configure"], {"generator": line(5), "fileDir": str(where)}
+            )
+            assert (where / "motors.h5").exists()
+        finally:
+            await process.stop()
+
+    run(scenario())
