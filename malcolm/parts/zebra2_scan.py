@@ -46,11 +46,12 @@ from malcolm.io.zebra2 import (
 )
 
 from .base import Part, PartRegistrar
-from .zebra2_scan_capture import CaptureStream, Experiment
-from .zebra2_scan_file import create_scan_file, dataset_rows, datasets_meta
+from .zebra2_scan_datasets import dataset_rows, datasets_meta
 
 if TYPE_CHECKING:
     from malcolm.hooks import Task
+
+    from .zebra2_scan_capture import CaptureStream, Experiment
 
 __all__ = ["Zebra2ScanPart", "run_commands", "setup_commands"]
 
@@ -181,10 +182,23 @@ class Zebra2ScanPart(Part):
             if isinstance(reply, Exception):
                 raise self._lost(reply)
 
-    async def _close(self) -> None:
+    async def _close_stream(self) -> None:
+        """Stop reading the data port and close it (and the file)."""
         stream, self.stream = self.stream, None
         if stream is not None:
             await stream.close()
+
+    async def close(self) -> None:
+        """Disarm and let go of the box (the process closes this at stop)."""
+        await self._stop()
+        await self._close()
+
+    def _closed_with(self, task: Task) -> None:
+        """Have the process close this part's connections when it stops."""
+        task.process.backends[f"zebra2.Scan {self.address} {id(self)}"] = self
+
+    async def _close(self) -> None:
+        await self._close_stream()
         control, self.control = self.control, None
         if control is not None:
             await control.close()
@@ -219,30 +233,50 @@ class Zebra2ScanPart(Part):
             raise BadValueError(
                 f"{device.mri}.configure.formatName: {name!r} is not a file name"
             )
+        file_dir = str(device.params.get("fileDir") or "")
+        if file_dir and os.path.exists(file_dir) and not os.path.isdir(file_dir):
+            raise BadValueError(
+                f"{device.mri}.configure.fileDir: {file_dir!r} is not a directory"
+            )
         return {}
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
-        from malcolm.io.zebra2.data import DataClient  # pandablocks: when used
+        # pandablocks, h5py and numpy: when a scan is first configured
+        from malcolm.io.zebra2.data import DataClient
 
-        await self._close()
+        from .zebra2_scan_capture import CaptureStream
+        from .zebra2_scan_file import create_scan_file
+
+        self._closed_with(task)
+        await self._close_stream()
         path, filename = self._file_path(device)
         first, end = 0, int(device.configuredSteps)
-        await self._send(setup_commands(first, end, self._period(device, first)))
         data = DataClient(self.host, self.data_port, True, self.timeout)
-        try:
-            await data.connect()
-        except MalcolmError as e:
-            await data.close()
-            raise self._lost(e) from None
+        # the setup, the data connection and the empty file at once
+        work = [
+            self._send(setup_commands(first, end, self._period(device, first))),
+            self._connect_data(data),
+        ]
         if path:
             meta = {"mri": device.mri, "host": self.address}
-            await asyncio.to_thread(create_scan_file, path, meta)
+            work.append(asyncio.to_thread(create_scan_file, path, meta))
+        outcomes = await asyncio.gather(*work, return_exceptions=True)
+        failed = [o for o in outcomes if isinstance(o, BaseException)]
+        if failed:
+            await data.close()
+            raise failed[0]
         self.path = path
         self.stream = CaptureStream(data, path)
         await self._send(["*PCAP.ARM="])
         prefix = str(device.params.get("formatName") or self.default_name)
         self.datasets.set_value(dataset_rows(prefix, filename))
+
+    async def _connect_data(self, data: Any) -> None:
+        try:
+            await data.connect()
+        except MalcolmError as e:
+            raise self._lost(e) from None
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
@@ -320,7 +354,7 @@ class Zebra2ScanPart(Part):
     @RunnableDevice.Abort
     async def abort(self, task: Task, device: Any) -> None:
         await self._stop()
-        await self._close()
+        await self._close_stream()
 
     @RunnableDevice.Disable
     async def disable(self, task: Task, device: Any) -> None:

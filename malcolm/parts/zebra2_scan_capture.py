@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING
 
 from pandablocks.responses import EndData, FrameData, StartData
 
-from .zebra2_scan_file import POSITION, ScanFile
+from .zebra2_scan_datasets import POSITION
+from .zebra2_scan_file import ScanFile
 
 if TYPE_CHECKING:
     from malcolm.io.zebra2.data import DataClient

@@ -8,7 +8,7 @@ the box sent them. :func:`create_scan_file` makes it empty at configure;
 :class:`ScanFile` appends one experiment's frames to it and is closed at the
 experiment's ``END``, so another process can read it whenever no
 experiment is in progress. Every call is blocking: run it in a worker
-thread.
+thread. (h5py and numpy: imported when a scan is first configured.)
 """
 
 from __future__ import annotations
@@ -20,64 +20,11 @@ from typing import Any
 import h5py
 import numpy as np
 
-from malcolm.core import (
-    ChoiceArrayMeta,
-    NumberArrayMeta,
-    StringArrayMeta,
-    TableMeta,
-)
 from malcolm.io.zebra2.hdf import CHUNK_ROWS, CaptureFile
 
-__all__ = [
-    "DATASET_TYPES",
-    "POSITION",
-    "TIMESTAMP",
-    "UNIQUEID",
-    "ScanFile",
-    "create_scan_file",
-    "dataset_rows",
-    "datasets_meta",
-]
+from .zebra2_scan_datasets import COLUMNS, POSITION, UNIQUEID
 
-#: the box's column whose scaled value is the point's index (the simulated
-#: encoder; docs/devices.md) and the trigger timestamp column
-POSITION = "COUNTER1.OUT.Value"
-TIMESTAMP = "PCAP.TS_TRIG.Value"
-#: the columns the manager captures, in the box's capture order
-COLUMNS = (POSITION, TIMESTAMP)
-#: the dataset of each row's point + 1
-UNIQUEID = "uniqueid"
-DATASET_TYPES = ("primary", "secondary", "monitor", "position_set", "position_value")
-
-
-def datasets_meta() -> TableMeta:
-    """The ``datasets`` table GDA reads (pymalcolm's columns)."""
-    return TableMeta(
-        {
-            "name": StringArrayMeta("Dataset name, e.g. zebra.COUNTER1.OUT"),
-            "filename": StringArrayMeta("File it is in, relative to fileDir"),
-            "type": ChoiceArrayMeta(DATASET_TYPES, "What the dataset holds"),
-            "rank": NumberArrayMeta("int32", "Dimensions of one point's value"),
-            "path": StringArrayMeta("HDF5 path of the dataset"),
-            "uniqueid": StringArrayMeta("HDF5 path of each row's point + 1"),
-        },
-        "Datasets the last configure writes",
-    )
-
-
-def dataset_rows(prefix: str, filename: str) -> dict[str, list[Any]]:
-    """The ``datasets`` columns for a file ``filename`` ("" = none)."""
-    if not filename:
-        return {k: [] for k in ("name", "filename", "type", "rank", "path", "uniqueid")}
-    names = [f"{prefix}.{c.rsplit('.', 1)[0]}" for c in COLUMNS]
-    return {
-        "name": names,
-        "filename": [filename] * len(COLUMNS),
-        "type": ["monitor"] * len(COLUMNS),
-        "rank": [0] * len(COLUMNS),
-        "path": [f"/{c}" for c in COLUMNS],
-        "uniqueid": [f"/{UNIQUEID}"] * len(COLUMNS),
-    }
+__all__ = ["ScanFile", "create_scan_file", "uniqueids"]
 
 
 def _dataset(f: h5py.File, name: str, dtype: Any) -> h5py.Dataset:

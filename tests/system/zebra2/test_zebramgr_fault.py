@@ -43,6 +43,8 @@ def test_the_box_killed_mid_run_faults_naming_it_and_reset_recovers(sim, tmp_pat
             still = (block.state.value, block.health.value)
             await loop.run_in_executor(None, sim.start)
             await process.post([MRI, "reset"])
+            # the children's poll finds the box again within a poll or two
+            await wait_for(block, "health", lambda v: v == "OK", timeout=5)
             ready = (block.state.value, block.health.value)
             small = gda.compound(gda.line("x", 12), duration=0.002)
             await process.post([MRI, "configure"], {**params, "generator": small})
@@ -76,3 +78,31 @@ def test_a_box_that_is_not_there_faults_at_start_naming_it(sim, tmp_path):
 
     state, health = asyncio.run(main())
     assert state == "Fault" and address in health, (state, health)
+
+
+def test_the_box_killed_while_armed_fails_the_run_at_once(sim, tmp_path):
+    address = f"Zebra2 box {sim.host}:{sim.control_port}"
+
+    async def main():
+        process = zebra_process(sim)
+        await process.start()
+        loop = asyncio.get_running_loop()
+        try:
+            block = process.get_block(MRI)
+            generator = gda.compound(gda.line("x", 20), duration=0.01)
+            params = {"generator": generator, "fileDir": str(tmp_path)}
+            await process.post([MRI, "configure"], params)
+            await loop.run_in_executor(None, sim.kill)
+            try:
+                await asyncio.wait_for(process.post([MRI, "run"]), 10)
+                raise AssertionError("the run did not fail")
+            except MalcolmError as e:
+                error = str(e)
+            return error, block.state.value, block.health.value
+        finally:
+            await process.stop()
+
+    error, state, health = asyncio.run(main())
+    assert address in error
+    assert state == "Fault" and address in health, (state, health)
+    assert read_elsewhere(tmp_path / "zebra.h5")["uniqueid"] == []

@@ -16,7 +16,8 @@ from malcolm.scan import gda
 from .conftest import RawClient
 from .zebramgr import MRI, read_elsewhere, wait_for, zebra_process
 
-N = 150
+N = 300
+M = 200
 PERIOD = 0.01
 
 
@@ -69,7 +70,7 @@ def test_seek_while_armed_and_paused_twice(sim, tmp_path):
         await process.start()
         try:
             block = process.get_block(MRI)
-            generator = gda.compound(gda.line("x", 60), duration=0.005)
+            generator = gda.compound(gda.line("x", M), duration=0.005)
             await process.post(
                 [MRI, "configure"], {"generator": generator, "fileDir": str(tmp_path)}
             )
@@ -96,8 +97,8 @@ def test_seek_while_armed_and_paused_twice(sim, tmp_path):
     split = drops[0]
     assert split >= 20  # at least points 10..29 came before the pause
     assert uids[:split] == list(range(11, 11 + split))  # from the point sought
-    assert uids[split:] == list(range(16, 61))  # from the last pause's point
-    assert sorted(set(uids)) == list(range(11, 61))
+    assert uids[split:] == list(range(16, M + 1))  # from the last pause's point
+    assert sorted(set(uids)) == list(range(11, M + 1))
 
 
 def test_abort_disarms_closes_the_file_and_a_reset_scans_again(sim, tmp_path):

@@ -13,7 +13,7 @@ import pytest
 from malcolm.core import MalcolmError
 from malcolm.scan import gda
 
-from .zebramgr import MRI, read_elsewhere, zebra_process
+from .zebramgr import MRI, read_elsewhere, wait_for, zebra_process
 
 
 def test_a_line_gives_one_row_per_point_with_its_uniqueid(sim, tmp_path):
@@ -125,3 +125,80 @@ def test_a_bad_format_name_is_refused_naming_it(sim, tmp_path, name):
     message, state = asyncio.run(main())
     assert "formatName" in message and repr(name) in message
     assert state == "Ready"
+
+
+def test_a_file_dir_that_is_a_file_is_refused_naming_it(sim, tmp_path):
+    not_dir = tmp_path / "plain"
+    not_dir.write_text("x")
+
+    async def main():
+        process = zebra_process(sim)
+        await process.start()
+        try:
+            generator = gda.compound(gda.line("x", 3), duration=0.01)
+            params = {"generator": generator, "fileDir": str(not_dir)}
+            with pytest.raises(MalcolmError) as e:
+                await process.post([MRI, "configure"], params)
+            return str(e.value), process.get_block(MRI).state.value
+        finally:
+            await process.stop()
+
+    message, state = asyncio.run(main())
+    assert "fileDir" in message and repr(str(not_dir)) in message
+    assert state == "Ready"
+    assert not_dir.read_text() == "x"
+
+
+def test_a_10000_point_spiral_gives_10000_rows(sim, tmp_path):
+    """At 50 us a point: configure writes no per-point tables (the counter
+    and PCOMP are set by a start, a step and a count) and capture keeps
+    up."""
+    generator = gda.compound(gda.spiral("x", "y", 56.4), duration=50e-6)
+
+    async def main():
+        process = zebra_process(sim)
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            params = {"generator": generator, "fileDir": str(tmp_path)}
+            await process.post([MRI, "configure"], params)
+            total = block.totalSteps.value
+            await process.post([MRI, "run"])
+            return total, block.state.value
+        finally:
+            await process.stop()
+
+    total, state = asyncio.run(main())
+    assert 9900 < total < 10100 and state == "Finished"
+    data = read_elsewhere(tmp_path / "zebra.h5")
+    assert data["uniqueid"] == list(range(1, total + 1))
+    ts = np.array(data["PCAP.TS_TRIG.Value"])
+    np.testing.assert_allclose(np.diff(ts), 50e-6, rtol=1e-3)
+
+
+def test_the_children_show_what_configure_set_up(sim, tmp_path):
+    """The box's blocks are the manager's children (zebra2.Manager): within
+    a poll they show the position compare the scan set and its wiring."""
+
+    async def main():
+        process = zebra_process(sim, poll_period=0.05)
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            generator = gda.compound(gda.line("x", 33), duration=0.01)
+            await process.post([MRI, "configure"], {"generator": generator})
+            pcomp = process.get_block(f"{MRI}:PCOMP1")
+            await wait_for(pcomp, "PULSES", lambda v: v == 33, timeout=5)
+            wiring = await wait_for(
+                block, "wiring", lambda v: "PCAP.TRIG" in list(v["sink"]), timeout=5
+            )
+            sources = dict(zip(wiring["sink"], wiring["source"]))
+            return pcomp.INP.value, pcomp.START.value, sources
+        finally:
+            await process.stop()
+
+    inp, start, sources = asyncio.run(main())
+    assert (inp, start) == ("COUNTER1.OUT", 2)
+    assert sources["PCAP.TRIG"] == "PCOMP1.OUT"
+    assert sources["PCAP.ENABLE"] == "PCOMP1.ACTIVE"
+    assert sources["COUNTER1.TRIG"] == "CLOCK1.OUT"

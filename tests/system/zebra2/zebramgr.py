@@ -3,6 +3,7 @@ the raw file read by another process (so it must be closed)."""
 
 from __future__ import annotations
 
+import asyncio
 import json
 import subprocess
 import sys
@@ -57,9 +58,9 @@ def read_elsewhere(path: Path) -> dict[str, list[Any]]:
 
 async def wait_for(block: Any, field: str, predicate: Any, timeout: float = 20) -> Any:
     """Until ``block[field]``'s value satisfies ``predicate``; the value."""
-    loop = __import__("asyncio").get_running_loop()
+    loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout
     while not predicate(block[field].value):
         assert loop.time() < deadline, f"{field} is still {block[field].value!r}"
-        await __import__("asyncio").sleep(0.01)
+        await asyncio.sleep(0.01)
     return block[field].value
