@@ -35,8 +35,6 @@ import re
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from malcolm.core import (
     BadValueError,
     MalcolmError,
@@ -473,6 +471,8 @@ class ScanFilePart(Part):
         attrs = {"scan_mri": device.mri, "completed_steps": device.completedSteps}
 
         def work() -> Any:
+            import numpy as np  # loaded with the first file, not at start-up
+
             demands = {
                 axis: np.concatenate(list(points.column("positions", axis)))
                 for axis in points.axes
