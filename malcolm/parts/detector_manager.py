@@ -109,7 +109,8 @@ class DetectorManagerPart(Part):
         self._origin: str | None = None
         self._process: Any = None
         self._armed = False
-        self._busy: list[Any] = []
+        #: the busy puts in flight: child key -> future
+        self._busy: dict[str, Any] = {}
         self._loaded = 0  # positions loaded into the plugin (point index)
         self._end = 0  # where the armed run stops
         self._topping = False
@@ -303,9 +304,9 @@ class DetectorManagerPart(Part):
     async def _load(self, task: Task, upto: int) -> None:
         """Load positions ``self._loaded .. upto-1`` into the plugin."""
         while self._loaded < upto:
-            stop = min(upto, self._loaded + XML_BATCH)
-            await task.put(self.pos.xml, positions_xml(self._loaded, stop))
-            self._loaded = stop
+            start = self._loaded
+            self._loaded = stop = min(upto, start + XML_BATCH)  # taken now
+            await task.put(self.pos.xml, positions_xml(start, stop))
 
     async def _arm(
         self,
@@ -321,7 +322,8 @@ class DetectorManagerPart(Part):
         to the file, opening it at the first frame (so it stays closed while
         the scan is paused or between runs)."""
         self._armed = False
-        self._busy = []
+        self._busy = {}
+        self._topping = False
         self._end = end
         frames = end - start
         if frames <= 0:
@@ -341,13 +343,13 @@ class DetectorManagerPart(Part):
         self._loaded = start
         await self._load(task, min(end, start + self.preload))
         waits = [task.when_matches(pos.running, True, timeout=SETTLE_TIMEOUT)]
-        self._busy.append(task.put_async(pos.start, True))
+        self._busy["plugin"] = task.put_async(pos.start, True)
         if self._file:
-            self._busy.append(task.put_async(hdf.capture, True))
+            self._busy["writer"] = task.put_async(hdf.capture, True)
             waits.append(task.when_matches(hdf.capture, True, timeout=SETTLE_TIMEOUT))
         await self._until_armed(waits)
         if self.external:
-            self._busy.append(task.put_async(drv.acquire, "Acquire"))
+            self._busy["driver"] = task.put_async(drv.acquire, "Acquire")
             await self._until_armed(
                 [
                     task.when_matches(
@@ -361,7 +363,7 @@ class DetectorManagerPart(Part):
         """Wait for ``waits``; a busy put that ends first (it failed, or the
         writer could not open its file) fails the arming."""
         pending = set(waits)
-        busy = set(self._busy)
+        busy = set(self._busy.values())
         while pending:
             done, _ = await asyncio.wait(
                 pending | busy, return_when=asyncio.FIRST_COMPLETED
@@ -383,7 +385,7 @@ class DetectorManagerPart(Part):
         """Stop the driver, then the plugins (the file is closed)."""
         armed = self._armed or bool(self._busy)
         self._armed = False
-        self._busy = []
+        self._busy = {}
         drv, pos, hdf = self.drv, self.pos, self.hdf
         await task.put(drv.stop, True)
         await task.wait_all(
@@ -402,9 +404,9 @@ class DetectorManagerPart(Part):
         """Load more positions when the plugin runs low."""
         if self._topping or self._loaded >= self._end or left > XML_BATCH:
             return None
+        self._topping = True  # now: the callback may come again before load runs
 
         async def load() -> None:
-            self._topping = True
             try:
                 await self._load(task, min(self._end, self._loaded + XML_BATCH))
             finally:
@@ -418,9 +420,11 @@ class DetectorManagerPart(Part):
         try:
             if not self._armed:
                 await self._arm(task, start, end)
-            busy = list(self._busy)
             if not self.external:
-                busy.append(task.put_async(self.drv.acquire, "Acquire"))
+                self._busy["driver"] = task.put_async(self.drv.acquire, "Acquire")
+            # the driver's and writer's puts end with the run's frames (the
+            # plugin's ends when its positions are used up: not a frame count)
+            busy = [self._busy[k] for k in ("driver", "writer") if k in self._busy]
             counter = self.hdf.numCaptured if self._file else self.pos.processed
             ids = [
                 task.subscribe(
@@ -433,10 +437,12 @@ class DetectorManagerPart(Part):
             finally:
                 for sid in ids:
                     task.unsubscribe(sid)
+            if self.pos.running.value:
+                await task.put(self.pos.stop, True)
         except ChannelError as e:
             raise self._failed(task, e) from e
         self._armed = False
-        self._busy = []
+        self._busy = {}
         if self._file and self.hdf.writeStatus.value != "Write OK":
             raise MalcolmError(
                 f"{self.mris['writer']}: {self.hdf.writeMessage.value}"

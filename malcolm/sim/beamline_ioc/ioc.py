@@ -9,6 +9,9 @@ from .detector import make_detector
 from .motion import Motor, Trajectory
 from .runner import READY
 
+#: EPICS callback ring size (softioc leaves EPICS' default, 2000)
+CALLBACK_QUEUE = 100000
+
 
 def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
     """Make every record of the IOC under ``prefix`` (and, with
@@ -39,7 +42,12 @@ def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
 def run(prefix: str, bench_blocks: int = 0) -> None:
     """Serve the IOC until stdin closes or the process is signalled."""
     from softioc import asyncio_dispatcher, softioc
+    from softioc.imports import callbackSetQueueSize
 
+    # every record .set() is a callback; frames every 0.5 ms update several
+    # records each, more than the default ring of 2000 holds in a burst (a
+    # lost callback can leave a put never completed)
+    callbackSetQueueSize(CALLBACK_QUEUE)
     dispatcher = asyncio_dispatcher.AsyncioDispatcher()
     things = build(prefix, bench_blocks)
     softioc.iocInit(dispatcher, enable_pva=False)

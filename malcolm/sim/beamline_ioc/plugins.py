@@ -37,6 +37,7 @@ import numpy as np
 from softioc import builder
 
 TEXT = 65536  # bytes of a char waveform
+FLUSH_ROWS = 200  # frames the writer keeps before writing them
 
 
 def stop_requested(record: Any) -> bool:
@@ -234,6 +235,7 @@ class HDFWriter(Stoppable):
             always_update=True,
         )
         self.file: Any = None
+        self.rows: list[tuple[np.ndarray, int, dict]] = []
         self.filename = ""
         self.capturing = False
         self.done = asyncio.Event()
@@ -271,6 +273,7 @@ class HDFWriter(Stoppable):
         if not self.lazy.get() and not self._open():
             return
         self.num_captured.set(0)
+        self.rows = []
         self.capturing = True
         self.capture_rbv.set(1)
         self.done.clear()
@@ -279,26 +282,23 @@ class HDFWriter(Stoppable):
                 try:
                     await asyncio.wait_for(self.done.wait(), 0.05)
                 except TimeoutError:
-                    pass
+                    self._flush()
         finally:
             self.capturing = False
+            self._flush()
             file, self.file = self.file, None
             if file is not None:
                 file.close()
             self.capture_rbv.set(0)
 
     def write(self, frame: np.ndarray, uid: int, position: dict | None) -> None:
-        """Append ``frame`` if capturing with callbacks on."""
+        """Take ``frame`` if capturing with callbacks on: it is written to the
+        file with the frames after it (``FLUSH_ROWS`` at a time, at least
+        every 50 ms, and when the capture ends)."""
         if not self.capturing or not self.callbacks.get() or self.done.is_set():
             return
-        if self.file is None and not self._open():
-            self.done.set()
-            return
-        try:
-            self._append(self.file, frame, uid, position)
-        except (OSError, ValueError, KeyError) as e:
-            self._fail(f"write failed: {e}")
-            self.done.set()
+        self.rows.append((frame, uid, position or {}))
+        if len(self.rows) >= FLUSH_ROWS and not self._flush():
             return
         captured = self.num_captured.get() + 1
         self.num_captured.set(captured)
@@ -306,28 +306,54 @@ class HDFWriter(Stoppable):
         if wanted and captured >= wanted:
             self.done.set()
 
-    @staticmethod
-    def _append(file: Any, frame: np.ndarray, uid: int, position: dict | None) -> None:
-        data = file.get("entry/data")
-        if data is None:
-            data = file.create_dataset(
-                "entry/data",
-                shape=(0, *frame.shape),
-                maxshape=(None, *frame.shape),
-                dtype=frame.dtype,
-                chunks=(1, *frame.shape),
-            )
-            file.create_dataset("entry/uid", (0,), maxshape=(None,), dtype="i4")
-        n = data.shape[0]
-        data.resize(n + 1, axis=0)
-        data[n] = frame
-        uids = file["entry/uid"]
-        uids.resize(n + 1, axis=0)
-        uids[n] = uid
-        for key, text in (position or {}).items():
-            name = f"entry/positions/{key}"
-            values = file.get(name)
-            if values is None:
-                values = file.create_dataset(name, (0,), maxshape=(None,), dtype="f8")
-            values.resize(n + 1, axis=0)
-            values[n] = float(text)
+    def _flush(self) -> bool:
+        """Write the frames taken so far; False (and a write error) if that
+        failed, which ends the capture."""
+        rows, self.rows = self.rows, []
+        if not rows:
+            return True
+        if self.file is None and not self._open():
+            self.done.set()
+            return False
+        try:
+            append_rows(self.file, rows)
+        except (OSError, ValueError, KeyError) as e:
+            self._fail(f"write failed: {e}")
+            self.done.set()
+            return False
+        return True
+
+
+def append_rows(file: Any, rows: list[tuple[np.ndarray, int, dict]]) -> None:
+    """Append frames, uniqueIds and positions to the file's datasets."""
+    frames = np.stack([frame for frame, _, _ in rows])
+    shape = frames.shape[1:]
+    data = file.get("entry/data")
+    if data is None:
+        per_chunk = max(1, min(256, 65536 // max(1, frames[0].nbytes)))
+        data = file.create_dataset(
+            "entry/data",
+            shape=(0, *shape),
+            maxshape=(None, *shape),
+            dtype=frames.dtype,
+            chunks=(per_chunk, *shape),
+        )
+        file.create_dataset("entry/uid", (0,), maxshape=(None,), dtype="i4")
+    n, k = data.shape[0], len(rows)
+    data.resize(n + k, axis=0)
+    data[n:] = frames
+    uids = file["entry/uid"]
+    uids.resize(n + k, axis=0)
+    uids[n:] = [uid for _, uid, _ in rows]
+    keys = sorted({key for _, _, position in rows for key in position})
+    for key in keys:
+        name = f"entry/positions/{key}"
+        values = file.get(name)
+        if values is None:
+            values = file.create_dataset(name, (0,), maxshape=(None,), dtype="f8")
+        column = [float(p.get(key, "nan")) for _, _, p in rows]
+        old = values.shape[0]
+        values.resize(n + k, axis=0)
+        if old < n:  # a key first seen now: earlier rows have none
+            values[old:n] = np.nan
+        values[n:] = column

@@ -77,18 +77,20 @@ def test_positions_beyond_the_preload_are_loaded_during_the_run(ioc, tmp_path):
     process = Process("detmgr-test", channels={"ca": "pyepics"})
     build_definition(
         "ADCore.DetectorManager",
-        {"prefix": PREFIX, "preload": 40},
+        {"prefix": PREFIX, "preload": 200},
         "DET",
         process=process,
     )
-    total = 3000  # more than a batch (2500) beyond the preload
+    total = 2800  # more than a batch (2500) beyond the preload
 
     async def scenario():
         det = await started(process)
         try:
-            params = {"generator": line(total, 0.0005), "fileDir": str(tmp_path)}
+            # 200 ms of frames in the plugin when the run starts: the first
+            # top-up has that long to arrive
+            params = {"generator": line(total, 0.001), "fileDir": str(tmp_path)}
             await process.post(["DET", "configure"], params)
-            assert process.get_block("DET:POS").positions.value == 40
+            assert process.get_block("DET:POS").positions.value == 200
             await process.post(["DET", "run"])
             assert det.state.value == "Finished"
         finally:
