@@ -3,10 +3,13 @@ trajectories with a run-up, the raw file, and validate's refusals."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from malcolm.core import MalcolmError
+from malcolm.scan import gda
 
 from .conftest import follow, run
 from .motormgr import MRI, line, manager_process, read_file, snake
@@ -184,3 +187,41 @@ def test_file_arguments_that_cannot_work_are_refused_naming_them(ioc, tmp_path):
             await process.stop()
 
     run(scenario())
+
+
+def test_a_spiral_runs_and_one_of_10000_points_loads_whole(ioc, tmp_path):
+    process = manager_process()
+
+    async def scenario():
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            traj = process.get_block(f"{MRI}:traj")
+            spiral = gda.compound(gda.spiral("x", "y", 1.0, 0.1), duration=0.005)
+            await process.post(
+                [MRI, "configure"], {"generator": spiral, "fileDir": str(tmp_path)}
+            )
+            size = block.totalSteps.value
+            assert traj.numPoints.value == 2 * size + 1  # every point meets the next
+            await process.post([MRI, "run"])
+            assert block.state.value == "Finished"
+            # 10,000 points: 20,001 profile points in the controller at once
+            radius = 0.1 * math.sqrt(9999.5 / math.pi)
+            big = gda.compound(gda.spiral("x", "y", radius, 0.1), duration=0.01)
+            await process.post([MRI, "configure"], {"generator": big})
+            assert block.totalSteps.value == 10_000
+            assert traj.numPoints.value == 20_001
+            assert list(traj.positionsA.value[:3]) == pytest.approx(
+                process.get_controller(MRI)
+                .parts["trajectory"]
+                .profile.positions["x"][:3]
+            )
+            return size
+        finally:
+            await process.stop()
+
+    size = run(scenario())
+    data = read_file(str(tmp_path / "motors.h5"), ["x", "y"])
+    assert list(data["uniqueid"]) == list(range(1, size + 1))
+    for axis in ("x", "y"):
+        assert np.allclose(data[f"{axis}.value"], data[f"{axis}.value_set"], atol=1e-3)
