@@ -12,12 +12,18 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
   method's structure that, as a served call does, posts ``took`` and
   ``returned`` there before answering; a put that checks the number and
   posts it with a timeStamp to the field's and the block's channels.
+- the floor of the call and put ratios: the bare server again (names L.*)
+  whose handlers hand the same work to the process's idle loop and answer
+  there, as any server that keeps its state on an asyncio loop must: what
+  the hop from p4p's thread to the loop costs, with none of malcolm's work;
 - one p4p client Context each; each figure is the median of ``--ops``
-  round trips: a method call (HELLO.greet), a put of COUNTER.counter, a
-  get of it, a get of the whole COUNTER block;
+  round trips, served and bare in alternating rounds (the machine's load
+  changes weigh on both): a method call (HELLO.greet), a put of
+  COUNTER.counter, a get of it, a get of the whole COUNTER block;
 - counter increments a second seen by a monitor: the value set as fast as
-  the server side can for 2 s (on the process's loop; bare: a thread
-  posting), counting the updates of a monitor in a process of its own;
+  the server side can (on the process's loop; bare: a thread posting),
+  counting the updates of a monitor in a process of its own; served and
+  bare take turns, 6 rounds of 0.5 s each;
 - monitor updates per change: puts one after another, updates counted (by
   a monitor whose queue holds them all, so none is squashed client-side);
 - start to first get: ``python -m malcolm demo --pva-port P`` launched
@@ -28,7 +34,9 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
   from source (about 0.1-0.3 s here), a cost no installed malcolm pays;
 - server RSS: the load of tests/system (50 clients monitoring every demo
   block through a scan) three times against a served demo, its RSS after
-  each (skip with ``--no-load``).
+  each (skip with ``--no-load``): the demo as it starts by default
+  (pvAccess and the web server, whose aiohttp alone is about 12 MiB here),
+  then with ``--web-port 0`` (the pvAccess server's own figure).
 """
 
 from __future__ import annotations
@@ -93,11 +101,22 @@ def now_stamp() -> dict[str, int]:
 
 
 class Bare:
-    """A bare p4p server doing what the served demo does, on names B.*"""
+    """A bare p4p server doing what the served demo does, on names B.*
+
+    With ``loop``, its put and rpc handlers hand the same work to that
+    asyncio loop (``loop.call_soon_threadsafe``) and answer there: what any
+    server that changes its state on a loop only pays, with none of
+    malcolm's work (the floor of the round-trip ratios)."""
 
     def __init__(
-        self, block: dict[str, Any], greet: dict[str, Any], greet_type: Type
+        self,
+        block: dict[str, Any],
+        greet: dict[str, Any],
+        greet_type: Type,
+        prefix: str = "B",
+        loop: asyncio.AbstractEventLoop | None = None,
     ) -> None:
+        self.loop = loop
         self.counter_type = to_value(block["counter"]).type()
         self.counter = SharedPV(handler=self, initial=to_value(block["counter"]))
         self.block = SharedPV(initial=to_value(block))
@@ -107,10 +126,10 @@ class Bare:
         self.greet = SharedPV(handler=self, initial=to_value(greet))
         self.greet_type = greet_type
         udp = free_port(socket.SOCK_DGRAM)
-        provider = StaticProvider("bare")
-        provider.add("B.counter", self.counter)
-        provider.add("B", self.block)
-        provider.add("B.greet", self.greet)
+        provider = StaticProvider(f"bare-{prefix}")
+        provider.add(f"{prefix}.counter", self.counter)
+        provider.add(prefix, self.block)
+        provider.add(f"{prefix}.greet", self.greet)
         conf = {**server_conf(udp), "EPICS_PVAS_SERVER_PORT": "0"}
         self.server = Server(providers=[provider], conf=conf, useenv=False)
         self.tcp = int(self.server.conf()["EPICS_PVAS_SERVER_PORT"])
@@ -118,6 +137,12 @@ class Bare:
         self.provider = provider
 
     def put(self, pv: SharedPV, op: Any) -> None:
+        if self.loop is not None:  # the floor: answered on the loop
+            self.loop.call_soon_threadsafe(self.do_put, pv, op)
+        else:
+            self.do_put(pv, op)
+
+    def do_put(self, pv: SharedPV, op: Any) -> None:
         try:
             number = float(op.value()["value"])
         except (TypeError, ValueError) as e:
@@ -140,6 +165,12 @@ class Bare:
         self.block.post(whole)
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
+        if self.loop is not None:
+            self.loop.call_soon_threadsafe(self.do_rpc, pv, op)
+        else:
+            self.do_rpc(pv, op)
+
+    def do_rpc(self, pv: SharedPV, op: Any) -> None:
         """As a served method call: its channel gets ``took`` (the arguments,
         defaults filled) then ``returned``, each a MethodLog update."""
         name = op.value()["name"]
@@ -162,19 +193,27 @@ class Bare:
         self.server.stop()
 
 
-def timed(func: Callable[[], Any], ops: int) -> float:
-    """Median seconds of ``func()`` over ``ops`` calls (after 20 warm-ups)."""
+def timed(funcs: list[Callable[[], Any]], ops: int, rounds: int = 10) -> list[float]:
+    """Median seconds of each of ``funcs`` over ``ops`` calls each (after 20
+    warm-ups), in ``rounds`` rounds taking turns: a machine whose load
+    changes during the run (shared here) weighs on all alike."""
     for _ in range(20):
-        func()
-    times = []
-    for _ in range(ops):
-        t0 = time.perf_counter()
-        func()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        for func in funcs:
+            func()
+    times: list[list[float]] = [[] for _ in funcs]
+    per_round = max(1, ops // rounds)
+    for _ in range(rounds):
+        for func, out in zip(funcs, times):
+            for _ in range(per_round):
+                t0 = time.perf_counter()
+                func()
+                out.append(time.perf_counter() - t0)
+    return [statistics.median(t) for t in times]
 
 
-# the monitor of monitor_rate, in a process of its own (see monitor_rate)
+# the monitor of monitor_rates, in a process of its own (see monitor_rates):
+# each "start" line begins a count, each "stop" ends it and prints
+# "<updates> <seconds>"; an empty line ends it
 MONITOR = """
 import sys, threading, time
 from p4p.client.thread import Context
@@ -190,50 +229,67 @@ def on_update(_value):
 sub = ctx.monitor(name, on_update)
 first.wait(10)
 print("ready", flush=True)
-sys.stdin.readline()
-before, t0 = seen[0], time.perf_counter()
-sys.stdin.readline()
-print((seen[0] - before) / (time.perf_counter() - t0), flush=True)
+while sys.stdin.readline().strip() == "start":
+    before, t0 = seen[0], time.perf_counter()
+    sys.stdin.readline()
+    print(seen[0] - before, time.perf_counter() - t0, flush=True)
 sub.close()
 ctx.close()
 """
 
+Spin = Callable[[threading.Event], None]
 
-def monitor_rate(
-    udp: int, tcp: int, name: str, spin: Callable[[threading.Event], None]
-) -> float:
-    """Updates a second a monitor of ``name`` sees while ``spin`` sets it.
 
-    The monitor is a client in a process of its own, as GDA is: in the
+def monitor_rates(
+    sides: list[tuple[int, int, str, Spin]], rounds: int = 6, seconds: float = 0.5
+) -> list[float]:
+    """Updates a second a monitor of each side's name sees while its ``spin``
+    sets it, the sides taking turns for ``rounds`` rounds of ``seconds``
+    (a machine whose load changes weighs on both alike).
+
+    Each monitor is a client in a process of its own, as GDA is: in the
     server's process its callbacks would compete for the GIL with the
     thread that sets the counter, and it would count how often it got the
     GIL (the updates it misses are squashed into the next by pvAccess's
     queue), not what the server sends."""
-    mon = subprocess.Popen(
-        [sys.executable, "-c", MONITOR, str(udp), str(tcp), name],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    assert mon.stdin is not None and mon.stdout is not None
+    monitors = []
     try:
-        if mon.stdout.readline().strip() != "ready":
-            raise RuntimeError(f"the monitor of {name} did not connect")
+        for udp, tcp, name, _ in sides:
+            mon = subprocess.Popen(
+                [sys.executable, "-c", MONITOR, str(udp), str(tcp), name],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                text=True,
+            )
+            monitors.append(mon)
+            assert mon.stdin is not None and mon.stdout is not None
+            if mon.stdout.readline().strip() != "ready":
+                raise RuntimeError(f"the monitor of {name} did not connect")
         time.sleep(0.2)
-        stop = threading.Event()
-        worker = threading.Thread(target=spin, args=(stop,))
-        mon.stdin.write("start\n")
-        mon.stdin.flush()
-        worker.start()
-        time.sleep(2.0)
-        mon.stdin.write("stop\n")
-        mon.stdin.flush()
-        stop.set()
-        worker.join()
-        return float(mon.stdout.readline())
+        counts = [[0.0, 0.0] for _ in sides]
+        for _ in range(rounds):
+            for (_, _, _, spin), mon, count in zip(sides, monitors, counts):
+                assert mon.stdin is not None and mon.stdout is not None
+                stop = threading.Event()
+                worker = threading.Thread(target=spin, args=(stop,))
+                mon.stdin.write("start\n")
+                mon.stdin.flush()
+                worker.start()
+                time.sleep(seconds)
+                mon.stdin.write("stop\n")
+                mon.stdin.flush()
+                stop.set()
+                worker.join()
+                seen, took = mon.stdout.readline().split()
+                count[0] += float(seen)
+                count[1] += float(took)
+                time.sleep(0.05)  # the last updates drain
+        return [seen / took for seen, took in counts]
     finally:
-        mon.kill()
-        mon.wait(10)
+        for mon in monitors:
+            mon.kill()
+        for mon in monitors:
+            mon.wait(60)  # a loaded machine (shared here) can take a while
 
 
 def updates_per_change(ctx: Context, name: str, puts: int) -> float:
@@ -258,7 +314,7 @@ def updates_per_change(ctx: Context, name: str, puts: int) -> float:
     return (seen[0] - before) / puts
 
 
-def served_spin(process: Any) -> Callable[[threading.Event], None]:
+def served_spin(process: Any) -> Spin:
     block = process.get_block("COUNTER")
 
     async def spin(stop: threading.Event) -> None:
@@ -272,7 +328,7 @@ def served_spin(process: Any) -> Callable[[threading.Event], None]:
     return lambda stop: process.call_threadsafe(spin, stop).result()
 
 
-def bare_spin(bare: Bare) -> Callable[[threading.Event], None]:
+def bare_spin(bare: Bare) -> Spin:
     def spin(stop: threading.Event) -> None:
         n = 0
         while not stop.is_set():
@@ -284,11 +340,13 @@ def bare_spin(bare: Bare) -> Callable[[threading.Event], None]:
     return spin
 
 
-def launch_demo() -> tuple[subprocess.Popen[str], int, int]:
+def launch_demo(*extra: str) -> tuple[subprocess.Popen[str], int, int]:
+    """``malcolm demo`` serving pvAccess on a free port (and, by default, the
+    web on 8008: ``extra`` ``--web-port 0`` turns it off)."""
     tcp, udp = free_port(), free_port(socket.SOCK_DGRAM)
     env = dict(os.environ, **server_conf(udp))
     proc = subprocess.Popen(
-        [sys.executable, "-m", "malcolm", "demo", "--pva-port", str(tcp)],
+        [sys.executable, "-m", "malcolm", "demo", "--pva-port", str(tcp), *extra],
         cwd=ROOT,
         env=env,
         stdout=subprocess.DEVNULL,
@@ -329,10 +387,11 @@ def rss_mib(pid: int) -> float:
     return float("nan")
 
 
-def load_rss(runs: int = 3, clients: int = 50) -> list[float]:
-    """The served demo's RSS after each of ``runs`` loads."""
+def load_rss(*extra: str, runs: int = 3, clients: int = 50) -> list[float]:
+    """The served demo's RSS after each of ``runs`` loads (``extra``: more
+    arguments of ``malcolm demo``)."""
     mris = ["HELLO", "COUNTER", "MOTOR:X", "MOTOR:Y", "DET1", "DET2", "SCAN"]
-    proc, tcp, udp = launch_demo()
+    proc, tcp, udp = launch_demo(*extra)
     control = client(udp, tcp)
     out = []
     try:
@@ -384,8 +443,11 @@ def main(ops: int = 300, load: bool = True) -> None:
     greet_type = m.rpc(
         "HELLO.greet", Value(Type([("name", "s")]), {"name": "x"}), timeout=5
     ).type()
-    bare = Bare(process.get(["COUNTER"]), process.get(["HELLO", "greet"]), greet_type)
+    structures = (process.get(["COUNTER"]), process.get(["HELLO", "greet"]))
+    bare = Bare(*structures, greet_type)
     b = client(bare.udp, bare.tcp)
+    floor = Bare(*structures, greet_type, prefix="L", loop=process.loop)
+    f = client(floor.udp, floor.tcp)
     args = Value(Type([("name", "s")]), {"name": "bench"})
     lines = [
         f"{'figure':<{WIDTH}}{'malcolm':>10}{'bare':>10}{'ratio':>8}  "
@@ -399,18 +461,35 @@ def main(ops: int = 300, load: bool = True) -> None:
             ("get of a whole block (ms)", "COUNTER", "B", "get"),
         ]
         for case, mine, theirs, kind in pairs:
+            names = [mine, theirs, theirs.replace("B", "L", 1)]
             if kind == "call":
-                fm = timed(lambda n=mine: m.rpc(n, args, timeout=5), ops)
-                fb = timed(lambda n=theirs: b.rpc(n, args, timeout=5), ops)
+                funcs = [
+                    lambda c=c, n=n: c.rpc(n, args, timeout=5)
+                    for c, n in zip((m, b, f), names)
+                ]
             elif kind == "put":
-                fm = timed(lambda n=mine: m.put(n, 3.0, timeout=5), ops)
-                fb = timed(lambda n=theirs: b.put(n, 3.0, timeout=5), ops)
+                funcs = [
+                    lambda c=c, n=n: c.put(n, 3.0, timeout=5)
+                    for c, n in zip((m, b, f), names)
+                ]
             else:
-                fm = timed(lambda n=mine: m.get(n, timeout=5), ops)
-                fb = timed(lambda n=theirs: b.get(n, timeout=5), ops)
+                funcs = [
+                    lambda c=c, n=n: c.get(n, timeout=5) for c, n in zip((m, b), names)
+                ]
+            fm, fb, *fl = timed(funcs, ops)
             lines.append(row(case, fm * 1e3, fb * 1e3, "<= 1.2x bare", fm <= 1.2 * fb))
-        rm = monitor_rate(udp, tcp, "COUNTER.counter", served_spin(process))
-        rb = monitor_rate(bare.udp, bare.tcp, "B.counter", bare_spin(bare))
+            if fl:
+                case = "  bare, answered on an asyncio loop"
+                lines.append(
+                    f"{case:<{WIDTH}}{fl[0] * 1e3:>10.4g}{fb * 1e3:>10.4g}"
+                    f"{fl[0] / fb:>8.2f}  {'(the floor)':<16}-"
+                )
+        rm, rb = monitor_rates(
+            [
+                (udp, tcp, "COUNTER.counter", served_spin(process)),
+                (bare.udp, bare.tcp, "B.counter", bare_spin(bare)),
+            ]
+        )
         lines.append(
             row(
                 "counter increments/s seen by a monitor",
@@ -426,7 +505,9 @@ def main(ops: int = 300, load: bool = True) -> None:
     finally:
         m.close()
         b.close()
+        f.close()
         bare.stop()
+        floor.stop()
         process.call_threadsafe(served.close).result(10)
         tp.stop()
     compileall.compile_dir(ROOT / "malcolm", quiet=1)
@@ -436,14 +517,17 @@ def main(ops: int = 300, load: bool = True) -> None:
         f"{'-':>8}  {'<= 0.8 s':<16}{'ok' if start <= 0.8 else 'MISSED'}"
     )
     if load:
-        rss = load_rss()
-        flat = rss[-1] - rss[-2] < 2
-        lines.append(
-            f"{'server RSS after the load test (MiB)':<{WIDTH}}{rss[-1]:>10.1f}"
-            f"{'-':>10}{'-':>8}  {'<= 60, flat':<16}"
-            f"{'ok' if rss[-1] <= 60 and flat else 'MISSED'}"
-            f"  (runs: {', '.join(f'{r:.1f}' for r in rss)})"
-        )
+        for case, extra in (
+            ("server RSS after the load test (MiB)", ()),
+            ("  the same, pvAccess only (--web-port 0)", ("--web-port", "0")),
+        ):
+            rss = load_rss(*extra)
+            flat = rss[-1] - rss[-2] < 2
+            lines.append(
+                f"{case:<{WIDTH}}{rss[-1]:>10.1f}{'-':>10}{'-':>8}  "
+                f"{'<= 60, flat':<16}{'ok' if rss[-1] <= 60 and flat else 'MISSED'}"
+                f"  (runs: {', '.join(f'{r:.1f}' for r in rss)})"
+            )
     one, five, fifteen = os.getloadavg()
     lines.append(
         f"(ratio = malcolm / bare; machine: {os.cpu_count()} cores, load average"

@@ -40,6 +40,7 @@ from malcolm.core import (
 
 from .convert import STRUCTURE, assign, fits, spec_at, to_dict, to_value, type_spec
 from .errlog import route_errlog
+from .ops import LoopSharedPV, error_text, start_op
 from .results import method_args, result_value, version_tag
 from .setters import Setter, compile_setter
 
@@ -49,10 +50,6 @@ log = logging.getLogger(__name__)
 
 #: seconds a channel nobody is connected to is kept (a client reconnecting)
 RELEASE_DELAY = 2.0
-
-
-def _error_text(e: BaseException) -> str:
-    return f"{type(e).__name__}: {e}"
 
 
 class _Channel:
@@ -69,6 +66,8 @@ class _Channel:
         self.data: Any = None
         self.spec: Any = None
         self.type: Any = None
+        # the Value each update is built in, reused (see _next_update)
+        self._update: Value | None = None
         self.sub: Any = None
         self.closed = False
         # change path -> its compiled setter, for self.spec (reset with it)
@@ -92,7 +91,21 @@ class _Channel:
         self.spec = type_spec(self.data)
         value = to_value(self.data)
         self.type = value.type()
+        self._update = None
         self.pv.open(value)
+
+    def _next_update(self) -> Value:
+        """The Value to build the next update in: one per channel, its marks
+        cleared. A post copies only the marked fields into the PV's current
+        value and clones the Value for each subscriber, so the same Value
+        serves every update; a new one for each would allocate the whole
+        structure (a block's: every field of every attribute) per change."""
+        value = self._update
+        if value is None:
+            value = self._update = Value(self.type)
+        else:
+            value.unmark()
+        return value
 
     # ---- on the loop
     def open(self) -> None:
@@ -113,6 +126,8 @@ class _Channel:
         if isinstance(meta, dict):
             tags = list(meta.get("tags") or [])
             if not any(str(t).startswith("version:") for t in tags):
+                if meta is not data:  # maybe the process's own: a copy
+                    data["meta"] = meta = dict(meta)
                 meta["tags"] = [*tags, version_tag()]
         return data
 
@@ -125,7 +140,7 @@ class _Channel:
         try:
             self._apply(changes)
         except Exception as e:  # a monitor must never stop the process
-            log.exception("pva %s: %s", self.name, _error_text(e))
+            log.exception("pva %s: %s", self.name, error_text(e))
 
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
@@ -137,13 +152,15 @@ class _Channel:
                 self.server._forget(self)
                 return
             before = self.data
-            self.data = self._tagged(apply_changes(self.data, changes))
+            # a copy: its dicts may be ones the process gave (never changed)
+            own = copy.deepcopy(before) if before is not None else None
+            self.data = self._tagged(apply_changes(own, changes))
             if before is not None and self.pv.isOpen():
                 if self.data == before:
                     return  # the snapshot opened with was already current
                 spec = type_spec(self.data)
                 if spec == self.spec:
-                    value = Value(self.type)
+                    value = self._next_update()
                     assign_all(value, self.data, spec)
                     self.pv.post(value)
                     return
@@ -179,7 +196,7 @@ class _Channel:
                 self._reopen(spec)
                 return
             posted = [([], self.data, spec)]
-        value = Value(self.type)
+        value = self._next_update()
         for path, data, sub_spec in posted:
             if path:
                 assign(value, path, data, sub_spec)
@@ -192,7 +209,7 @@ class _Channel:
         (the common case: a value, its alarm and timeStamp); False, with
         nothing done, for anything else (deletions, the whole channel, the
         block's meta, a new shape), which :meth:`_apply` does in full."""
-        value = Value(self.type)
+        value = self._next_update()
         block = len(self.path) == 1
         setters = self._setters
         for change in changes:
@@ -219,6 +236,7 @@ class _Channel:
         self.spec = spec or type_spec(self.data)
         value = to_value(self.data)
         self.type = value.type()
+        self._update = None
         if self.pv.isOpen():
             self.pv.close()
         self.pv.open(value)
@@ -249,13 +267,13 @@ class _Channel:
         self.clients = 0
         self.server._schedule_release(self)
 
+    # ---- operations, on the loop (LoopSharedPV hands them there)
     def put(self, pv: SharedPV, op: Any) -> None:
-        self.server._hand(op, self._put(op))
+        start_op(op, self._put(op), self.server._tasks)
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
-        self.server._hand(op, self._rpc(op))
+        start_op(op, self._rpc(op), self.server._tasks)
 
-    # ---- operations, on the loop
     async def _put(self, op: Any) -> None:
         value = op.value()
         mri = self.path[0]
@@ -325,25 +343,20 @@ class _Handler:
 
 
 def _apply_changes(data: Any, changes: list[list[Any]]) -> Any:
-    """:func:`malcolm.core.apply_changes` for changes below the root, copying
-    only dicts (the only values changed in place later)."""
+    """:func:`malcolm.core.apply_changes` for changes below the root, without
+    copying what a change brings: each dict on a change's path is copied
+    before it is changed, so a value kept as the process gave it (and gave
+    every other subscriber) is never changed in place. ``data``, the
+    channel's own, is changed in place."""
     for change in changes:
         *parents, last = change[0]
         target = data
         for key in parents:
-            target = target[key]
+            target[key] = target = dict(target[key])
         if len(change) == 1:
             del target[last]
         else:
-            new = change[1]
-            target[last] = _copy_dicts(new) if isinstance(new, dict) else new
-    return data
-
-
-def _copy_dicts(data: Any) -> Any:
-    """A copy of the dicts in ``data`` (what is later changed in place)."""
-    if isinstance(data, dict):
-        return {k: _copy_dicts(v) for k, v in data.items()}
+            target[last] = change[1]
     return data
 
 
@@ -378,7 +391,7 @@ class _Names:
             if self.server._path_of(name) is not None:
                 return True
         except Exception as e:  # a look-up must never stop the server
-            log.debug("pva search %r: %s", name, _error_text(e))
+            log.debug("pva search %r: %s", name, error_text(e))
         # not cached as missing: a block made later is found at once
         return DynamicProvider.NotYet
 
@@ -386,7 +399,7 @@ class _Names:
         try:
             return self.server._channel(name)
         except Exception as e:
-            log.debug("pva channel %r: %s", name, _error_text(e))
+            log.debug("pva channel %r: %s", name, error_text(e))
             return None
 
 
@@ -493,7 +506,8 @@ class PvaServer:
         if kept is not None:
             return kept
         handler = _Handler()
-        return SharedPV(handler=handler), handler
+        assert self._loop is not None
+        return LoopSharedPV(self._loop, handler), handler
 
     def _keep_pv(self, name: str, pv: SharedPV, handler: _Handler) -> None:
         with self._lock:
@@ -520,23 +534,6 @@ class PvaServer:
             if self._channels.get(chan.name) is chan:
                 del self._channels[chan.name]
         chan.close(keep=made is not None and self._server is not None)
-
-    def _hand(self, op: Any, coro: Any) -> None:
-        """Run an operation on the loop; its error goes back to the client."""
-
-        async def run() -> None:
-            try:
-                await coro
-            except Exception as e:
-                op.done(error=_error_text(e))
-
-        try:
-            future = self._call(run)
-        except Exception as e:
-            coro.close()
-            op.done(error=_error_text(e))
-            return
-        future.add_done_callback(lambda f: None)
 
     def _call(self, func: Any, *args: Any) -> Any:
         if self._loop is None:

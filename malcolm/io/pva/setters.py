@@ -6,7 +6,8 @@ of one field (:func:`malcolm.io.pva.convert.spec_at`) into a function
 ``setter(value, data) -> bool`` that checks ``data`` still fits that type
 (as :func:`~malcolm.io.pva.convert.fits` does) and sets its leaves (as
 :func:`~malcolm.io.pva.convert.assign` does), walking the spec once when
-compiled instead of once per change. False means the data does not fit:
+compiled instead of once per change: a structure's setter is generated
+Python source, every leaf checked and set in line. False means the data does not fit:
 the caller drops the half-filled ``Value`` and takes the general path.
 """
 
@@ -38,9 +39,23 @@ _EXACT: dict[str, tuple[type, ...]] = {
 def compile_setter(spec: Spec, dotted: str, subset: bool = False) -> Setter:
     """A setter of the field ``dotted`` (``""``: the whole value) of type
     ``spec``; ``subset``: a structure may hold fewer fields (a MethodLog's
-    value)."""
-    if isinstance(spec, tuple):
-        return _struct_setter(spec, dotted, subset)
+    value).
+
+    A structure's setter is one generated function that checks and sets
+    every leaf in line (a change's data is a few nested dicts: a timeStamp,
+    an alarm, a MethodLog), with no call per field."""
+    if not isinstance(spec, tuple):
+        return _leaf_setter(spec, dotted)
+    gen = _Generator()
+    body = gen.struct(spec, dotted, subset, "data", 1)
+    source = "def setter(value, data):\n" + "".join(body) + "    return True\n"
+    namespace: dict[str, Any] = dict(gen.constants)
+    exec(compile(source, f"<setter {dotted or 'value'}>", "exec"), namespace)
+    setter: Setter = namespace["setter"]
+    return setter
+
+
+def _leaf_setter(spec: Spec, dotted: str) -> Setter:
     exact = _EXACT.get(spec)
     if exact is not None:
 
@@ -64,31 +79,74 @@ def compile_setter(spec: Spec, dotted: str, subset: bool = False) -> Setter:
     return general
 
 
-def _struct_setter(spec: Spec, dotted: str, subset: bool) -> Setter:
-    typeid = spec[1]
-    names = tuple(k for k, _ in spec[2])
-    typed = ("typeid", *names)
-    allowed = frozenset(names)
-    log = typeid == _METHOD_LOG
-    prefix = f"{dotted}." if dotted else ""
-    children = [
-        (k, compile_setter(sub, prefix + k, log and k == "value")) for k, sub in spec[2]
-    ]
+class _Generator:
+    """Writes the lines of a structure's setter; its constants (names,
+    specs, the fallbacks) go in the function's globals as ``c<n>``."""
 
-    def struct(value: Value, data: Any) -> bool:
-        if not isinstance(data, dict):
-            return False
-        if data.get("typeid", STRUCTURE) != typeid:
-            return False
-        keys = tuple(data)
-        if keys != typed and keys != names:
-            plain = [k for k in keys if k != "typeid"]  # the typeid elsewhere
-            if not (set(plain) <= allowed if subset else tuple(plain) == names):
-                return False
-        for key, setter in children:
-            sub = data.get(key)
-            if sub is not None and not setter(value, sub):
-                return False
-        return True
+    def __init__(self) -> None:
+        self.constants: dict[str, Any] = {"fits": fits, "_fill": _fill}
+        self.names = 0
 
-    return struct
+    def const(self, value: Any) -> str:
+        name = f"c{len(self.constants)}"
+        self.constants[name] = value
+        return name
+
+    def var(self) -> str:
+        self.names += 1
+        return f"d{self.names}"
+
+    def struct(
+        self, spec: Spec, dotted: str, subset: bool, data: str, depth: int
+    ) -> list[str]:
+        pad = "    " * depth
+        names = tuple(k for k, _ in spec[2])
+        log = spec[1] == _METHOD_LOG
+        keys = self.var()
+        typed, plain = self.const(("typeid", *names)), self.const(names)
+        lines = [
+            f"{pad}if not isinstance({data}, dict):\n",
+            f"{pad}    return False\n",
+            f"{pad}if {data}.get('typeid', {STRUCTURE!r}) != {spec[1]!r}:\n",
+            f"{pad}    return False\n",
+            f"{pad}{keys} = tuple({data})\n",
+            f"{pad}if {keys} != {typed} and {keys} != {plain}:\n",
+            f"{pad}    {keys} = [k for k in {keys} if k != 'typeid']\n",
+        ]
+        if subset:
+            allowed = self.const(frozenset(names))
+            lines.append(f"{pad}    if not set({keys}) <= {allowed}:\n")
+        else:
+            lines.append(f"{pad}    if tuple({keys}) != {plain}:\n")
+        lines.append(f"{pad}        return False\n")
+        prefix = f"{dotted}." if dotted else ""
+        for key, sub in spec[2]:
+            var = self.var()
+            lines.append(f"{pad}{var} = {data}.get({key!r})\n")
+            lines.append(f"{pad}if {var} is not None:\n")
+            lines += self.field(sub, prefix + key, log and key == "value", var, depth)
+        return lines
+
+    def field(
+        self, spec: Spec, dotted: str, subset: bool, data: str, depth: int
+    ) -> list[str]:
+        pad = "    " * (depth + 1)
+        if isinstance(spec, tuple):
+            return self.struct(spec, dotted, subset, data, depth + 1)
+        sub, where = self.const(spec), repr(dotted)
+        exact = _EXACT.get(spec)
+        lines = []
+        if exact is not None:
+            types = self.const(exact)
+            lines += [
+                f"{pad}if type({data}) in {types}:\n",
+                f"{pad}    value[{where}] = {data}\n",
+                f"{pad}elif fits({sub}, {data}):\n",
+            ]
+        else:
+            lines.append(f"{pad}if fits({sub}, {data}):\n")
+        return lines + [
+            f"{pad}    value[{where}] = _fill({sub}, {data})\n",
+            f"{pad}else:\n",
+            f"{pad}    return False\n",
+        ]

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, TextIO
 from malcolm.core import Process
 
 if TYPE_CHECKING:
-    from .server import WebServer
+    from .lazy import LazyWebServer
 
 DEFAULT_PORT = 8008
 
@@ -45,15 +45,16 @@ async def start_if_asked(
     prog: str,
     out: TextIO | None = None,
     err: TextIO | None = None,
-) -> WebServer | None:
-    """Start the web server on ``port`` (None or 0: none) and print its address;
-    a port that cannot be bound is reported on ``err`` and serving goes on."""
+) -> LazyWebServer | None:
+    """Listen on ``port`` (None or 0: none) and print its address; the web
+    server itself loads when the first client connects (:mod:`.lazy`). A port
+    that cannot be bound is reported on ``err`` and serving goes on."""
     if not port:
         return None
-    from .server import start_web_server
+    from .lazy import LazyWebServer
 
     try:
-        server = await start_web_server(process, port)
+        server = LazyWebServer(process, port)
     except OSError as e:
         (err or sys.stderr).write(f"{prog}: no web server on port {port}: {e}\n")
         return None

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import socket
 import weakref
 from pathlib import Path
 
@@ -55,6 +56,13 @@ class WebServer:
         sockets = getattr(server, "sockets", None) or []
         self.host = host
         self.port = sockets[0].getsockname()[1] if sockets else port
+
+    async def start_on(self, sock: socket.socket, host: str) -> None:
+        """Serve on ``sock``, already bound and listening (:mod:`.lazy`)."""
+        await self.runner.setup()
+        await web.SockSite(self.runner, sock).start()
+        self.host = host
+        self.port = sock.getsockname()[1]
 
     async def close(self) -> None:
         """Stop listening, end every session and its subscriptions."""

@@ -141,3 +141,25 @@ def test_a_port_in_use_is_reported_and_serving_goes_on():
         finally:
             err = _stop(proc)
     assert f"malcolm demo: no web server on port {port}: " in err
+
+
+def _loaded(pid: int, name: str) -> bool:
+    """Whether process ``pid`` has mapped a shared library under ``name``/."""
+    maps = Path(f"/proc/{pid}/maps").read_text()
+    return f"/{name}/" in maps
+
+
+def test_the_web_stack_loads_when_the_first_client_connects():
+    port = _free_port()
+    proc = _start("demo", "--web-port", str(port), "--pva-port", "0")
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith(f"malcolm demo: web GUI at http://localhost:{port}/")
+        for line in proc.stdout:
+            if line.startswith("Serving until interrupted"):
+                break
+        assert not _loaded(proc.pid, "aiohttp")  # listening, nothing imported
+        _rest_and_gui(port)  # the first connection waits while it loads
+        assert _loaded(proc.pid, "aiohttp")
+    finally:
+        _stop(proc)

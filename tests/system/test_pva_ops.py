@@ -1,0 +1,193 @@
+"""Puts and calls of the pvAccess server run on the loop, their first step
+at once (malcolm.io.pva.ops): the operation's Task is current, its context
+is the Task's, and one that waits goes on without holding up the loop."""
+
+from __future__ import annotations
+
+import asyncio
+import contextvars
+import threading
+import time
+from typing import Any
+
+from malcolm.io.pva.ops import start_op
+
+from .test_pva_runtime import served  # noqa: F401 (a fixture)
+
+VAR: contextvars.ContextVar[str] = contextvars.ContextVar("VAR", default="unset")
+
+
+def from_callback(func: Any, *args: Any) -> Any:
+    """``func(*args)`` run as a loop callback (no task current), as p4p's
+    hand-over runs the handlers; awaitable for its result."""
+    loop = asyncio.get_running_loop()
+    fut = loop.create_future()
+    loop.call_soon(lambda: fut.set_result(func(*args)))
+    return fut
+
+
+class Op:
+    """What start_op needs of p4p's ServerOperation: done(value, error)."""
+
+    def __init__(self) -> None:
+        self.answers: list[tuple[Any, Any]] = []
+
+    def done(self, value: Any = None, error: Any = None) -> None:
+        self.answers.append((value, error))
+
+
+def test_an_operation_that_never_waits_is_answered_before_start_op_returns():
+    seen: dict[str, Any] = {}
+
+    async def put(op: Op) -> None:
+        seen["task"] = asyncio.current_task()
+        op.done("ok")
+
+    async def main() -> None:
+        op, tasks = Op(), set()
+
+        def handler() -> list[Any]:
+            start_op(op, put(op), tasks)
+            return list(op.answers)
+
+        # answered with no turn of the loop
+        assert await from_callback(handler) == [("ok", None)]
+        assert not tasks
+        assert isinstance(seen["task"], asyncio.Task)
+        await asyncio.sleep(0)
+        assert seen["task"].done() and seen["task"].exception() is None
+
+    asyncio.run(main())
+
+
+def test_an_operation_that_waits_goes_on_in_its_task_with_its_context():
+    seen: dict[str, Any] = {}
+    gate: list[asyncio.Future[None]] = []
+
+    async def call(op: Op) -> None:
+        token = VAR.set("mine")  # set in the first step...
+        seen["first"] = asyncio.current_task()
+        gate.append(asyncio.get_running_loop().create_future())
+        await gate[0]
+        seen["later"] = asyncio.current_task()
+        seen["var"] = VAR.get()
+        VAR.reset(token)  # ...reset after it: the same context
+        op.done("answer")
+
+    async def main() -> None:
+        op, tasks = Op(), set()
+        await from_callback(start_op, op, call(op), tasks)
+        assert op.answers == [] and len(tasks) == 1 and gate
+        assert VAR.get() == "unset"  # the step ran in the Task's context
+        gate[0].set_result(None)
+        await asyncio.wait(set(tasks))
+        assert op.answers == [("answer", None)]
+        assert seen["first"] is seen["later"]
+        assert seen["var"] == "mine"
+        assert not tasks  # dropped once done
+
+    asyncio.run(main())
+
+
+def test_an_error_goes_to_the_client_as_its_type_and_message():
+    async def fails_at_once(op: Op) -> None:
+        raise ValueError("bad at once")
+
+    async def fails_later(op: Op) -> None:
+        await asyncio.sleep(0)
+        raise KeyError("bad later")
+
+    async def main() -> None:
+        first, later, tasks = Op(), Op(), set()
+        await from_callback(start_op, first, fails_at_once(first), tasks)
+        await from_callback(start_op, later, fails_later(later), tasks)
+        assert first.answers == [(None, "ValueError: bad at once")]
+        await asyncio.wait(set(tasks))
+        assert later.answers == [(None, "KeyError: 'bad later'")]
+
+    asyncio.run(main())
+
+
+def test_an_operation_cancelled_while_waiting_is_cancelled_inside():
+    cancelled = threading.Event()
+
+    async def call(op: Op) -> None:
+        try:
+            await asyncio.sleep(10)
+        except asyncio.CancelledError:
+            cancelled.set()
+            raise
+
+    async def main() -> None:
+        op, tasks = Op(), set()
+        await from_callback(start_op, op, call(op), tasks)
+        (task,) = tasks
+        task.cancel()
+        await asyncio.wait({task})
+        assert task.cancelled() and cancelled.is_set()
+
+    asyncio.run(main())
+
+
+def test_a_call_that_sleeps_does_not_hold_up_other_clients(served):  # noqa: F811
+    tp, process, server, ctx = served
+    from p4p.client.thread import Context
+
+    other = Context("pva", conf=ctx.conf(), useenv=False, nt=False)
+    try:
+        block = process.get_block("FIRST")
+        assert ctx.get("FIRST.counter", timeout=5)["value"] == 0.0
+        done: list[float] = []
+
+        def slow_put() -> None:
+            # a put whose handler waits: FIRST.counter's put waits for the
+            # loop to let it through; here it is held by a gate below
+            ctx.put("FIRST.counter", 5.0, timeout=10)
+            done.append(time.monotonic())
+
+        gate = process.call_threadsafe(asyncio.Event).result(5)
+        controller = process.get_controller("FIRST")
+
+        async def held_put(value: float) -> None:
+            await gate.wait()
+            block.counter.set_value(value)
+
+        process.call_threadsafe(setattr, controller, "put_counter", held_put).result(5)
+        worker = threading.Thread(target=slow_put)
+        worker.start()
+        time.sleep(0.3)
+        assert not done  # still waiting at the gate
+        # meanwhile another client is served at once
+        assert other.get("FIRST.counter", timeout=5)["value"] == 0.0
+        process.call_threadsafe(gate.set).result(5)
+        worker.join(10)
+        assert done
+        assert other.get("FIRST.counter", timeout=5)["value"] == 5.0
+        assert not server._tasks  # the put's task went when done
+    finally:
+        other.close()
+
+
+def test_each_update_carries_only_its_own_change(served):  # noqa: F811
+    """A channel builds every update in one Value (its marks cleared each
+    time): an update never carries the fields of an earlier one, and the
+    PV's current value, which a new client gets, has them all."""
+    import queue
+
+    tp, process, server, ctx = served
+    updates: queue.Queue[Any] = queue.Queue()
+    sub = ctx.monitor("FIRST", updates.put, request="record[queueSize=10]")
+    try:
+        updates.get(timeout=10)  # the whole block
+        block = process.get_block("FIRST")
+        for attr, value in (("counter", 1.0), ("delta", 2.0), ("counter", 3.0)):
+            process.call_threadsafe(getattr(block, attr).set_value, value).result(5)
+            changed = updates.get(timeout=10).changedSet()
+            other = "delta" if attr == "counter" else "counter"
+            assert f"{attr}.value" in changed
+            assert not any(c.startswith(f"{other}.") for c in changed), changed
+        got = ctx.get("FIRST", timeout=5)
+        assert (got["counter.value"], got["delta.value"]) == (3.0, 2.0)
+        assert updates.empty()  # exactly one update per change
+    finally:
+        sub.close()
