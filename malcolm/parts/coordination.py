@@ -278,7 +278,7 @@ class DeviceChildPart(RunnableChildPart):
                 await process.post([self.mri, "abort"])
 
         fut = asyncio.ensure_future(stop_child())
-        fut.add_done_callback(lambda f: f.exception())
+        fut.add_done_callback(lambda f: f.cancelled() or f.exception())
 
 
 class DetectorPart(DeviceChildPart):
