@@ -26,7 +26,8 @@ async def build_trajectory(process: Process, start: int, stop: int, ms: int) -> 
     put = process.put
     await put(["TRAJ", "positionsA"], np.arange(start, stop, dtype=float))
     await put(["TRAJ", "positionsB"], np.zeros(n))
-    await put(["TRAJ", "times"], np.full(n, ms, dtype=np.int32))
+    # the trajectory's Times are microseconds (devmotor changed them from ms)
+    await put(["TRAJ", "times"], np.full(n, ms * 1000, dtype=np.int32))
     await put(["TRAJ", "numPoints"], n)
     await process.post(["TRAJ", "buildProfile"])
 
