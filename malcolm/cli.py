@@ -302,6 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
     from malcolm.sim.zebra2.cli import add_parser as add_sim_zebra2
 
     add_sim_zebra2(commands)
+    from malcolm.beamline import add_parser as add_beamline
+
+    add_beamline(commands)  # malcolm beamline (docs/beamline.md)
 
     from malcolm.io.pva.client_cli import add_parsers as add_pva_client
 

@@ -65,7 +65,9 @@ def _prefetch(backend: Any, process: Any, transport: str) -> None:
     _prefetched.add(backend)
     names: dict[str, None] = {}
     for mri in process.mris:
-        for part in process.get_controller(mri).parts.values():
+        # not every controller has parts (the pvAccess server's block list)
+        parts = getattr(process.get_controller(mri), "parts", None) or {}
+        for part in parts.values():
             if isinstance(part, ChannelPart) and part.transport == transport:
                 names.update(dict.fromkeys(n for n in (part.read, part.write) if n))
     prefetch(list(names))

@@ -1,0 +1,296 @@
+"""Issue 13's benchmark: the whole hierarchy beside the demo's single layer.
+
+    ../shared/tools/isolated .venv/bin/python -m benchmarks.beamline \
+        [--points 1000] [--repeats 5]
+
+Runs the simulated IOC and Zebra2 as subprocesses (as ``malcolm beamline``
+does) and builds the beamline process (``malcolm/blocks/beamline/
+process.yaml``: three device managers and the BeamlineManager ``BENCH:SCAN``)
+in this process, then measures, each beside the same figure for the demo's
+single-layer ``SCAN`` (two simulated detectors, two motors) in a process of
+its own:
+
+- configure of a 10x10 snake grid and of a 10,000-point spiral (median of
+  ``--repeats``, each a slightly different scan so none finds its points
+  kept; the block reset between), target: the three layers within 3x the
+  single layer;
+- the overhead per point of a run of a ``--points`` grid at the smallest
+  exposure the hierarchy accepts (its ``validate`` raises what is too
+  short): (run time - points x exposure) / points, the run alone (after
+  configure), target: at most 0.1 ms a point more than the demo's at the
+  same exposure.
+
+Beside each, the slowest device manager's figure alone (configured and run
+without the BeamlineManager), so the co-ordination layer's own share shows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from benchmarks.table import Row, median, render
+from malcolm.scan import gda
+
+PREFIX = "BENCH"
+SCAN = f"{PREFIX}:SCAN"
+DEVICES = [f"{PREFIX}:{name}" for name in ("DET", "MOTORS", "ZEBRA")]
+SOURCE = "targets from issue 13; reference: the demo's single-layer SCAN"
+
+
+def grid(ny: int, nx: int, duration: float) -> dict[str, Any]:
+    """A snake grid with points 0.01 apart (slow enough for the motors at
+    the smallest exposure)."""
+    return gda.compound(
+        gda.line("y", ny, 0.0, 0.01 * (ny - 1)),
+        gda.line("x", nx, 0.0, 0.01 * (nx - 1), alternate=True),
+        duration=duration,
+    )
+
+
+def spiral(points: int, duration: float) -> dict[str, Any]:
+    """A spiral of about ``points`` points, rings 0.01 apart."""
+    radius = 0.01 * math.sqrt((points - 0.5) / math.pi)
+    return gda.compound(gda.spiral("x", "y", radius, scale=0.01), duration=duration)
+
+
+def log(text: str) -> None:
+    """Progress on stderr (the table goes to stdout at the end)."""
+    print(f"benchmarks.beamline: {text}", file=sys.stderr, flush=True)
+
+
+async def configure_time(
+    process: Any, mri: str, generator: dict[str, Any], **args: Any
+) -> float:
+    """Seconds one configure takes; the block is reset after."""
+    start = time.perf_counter()
+    await process.post(
+        [mri, "configure"], {"generator": generator, "axesToMove": ["x", "y"], **args}
+    )
+    took = time.perf_counter() - start
+    await process.post([mri, "reset"])
+    log(f"{mri} configure {took * 1e3:.3g} ms")
+    return took
+
+
+async def run_time(process: Any, mri: str, generator: dict[str, Any], **args) -> float:
+    """Seconds the runs of a configured scan take, to Finished."""
+    await process.post(
+        [mri, "configure"], {"generator": generator, "axesToMove": ["x", "y"], **args}
+    )
+    start = time.perf_counter()
+    while process.get([mri, "state", "value"]) != "Finished":
+        await process.post([mri, "run"])
+    took = time.perf_counter() - start
+    await process.post([mri, "reset"])
+    log(f"{mri} run {took:.3g} s")
+    return took
+
+
+async def measure_layers(
+    process: Any,
+    mri: str,
+    points: int,
+    repeats: int,
+    exposure: float,
+    runs: bool = True,
+    **args: Any,
+) -> dict[str, float]:
+    """Configure times of the grid and the spiral; with ``runs``, the
+    overhead per point of a run of a ``points`` grid."""
+    out: dict[str, float] = {}
+    # first configures import and warm up what a scan uses: not counted
+    await configure_time(process, mri, grid(10, 10, 0.5), **args)
+    out["grid"] = median(
+        [
+            await configure_time(process, mri, grid(10, 10, 0.1 + i * 1e-6), **args)
+            for i in range(repeats)
+        ]
+    )
+    out["spiral"] = median(
+        [
+            await configure_time(process, mri, spiral(10_000, 0.1 + i * 1e-6), **args)
+            for i in range(repeats)
+        ]
+    )
+    if not runs:
+        return out
+    ny = max(1, int(math.sqrt(points)))
+    nx = max(1, points // ny)
+    n = ny * nx
+    times = [
+        await run_time(process, mri, grid(ny, nx, exposure * (1 + i * 1e-6)), **args)
+        for i in range(max(1, repeats // 2))
+    ]
+    out["overhead"] = (median(times) - n * exposure) / n
+    out["points"] = n
+    return out
+
+
+async def smallest_exposure(process: Any, mri: str, want: float) -> float:
+    """The exposure the hierarchy's validate gives back for ``want``."""
+    validated = await process.post(
+        [mri, "validate"], {"generator": grid(2, 2, want), "axesToMove": ["x", "y"]}
+    )
+    return float(validated["generator"]["duration"])
+
+
+async def beamline_figures(points: int, repeats: int, want: float) -> dict[str, Any]:
+    from malcolm.beamline import (
+        BEAMLINE_PROCESS_FILE,
+        SimZebra2,
+        beamline_defines,
+        build_beamline,
+    )
+    from malcolm.sim.beamline_ioc import SimIOC
+
+    ioc = SimIOC(PREFIX)
+    zebra = SimZebra2()
+    ioc.start()
+    try:
+        zebra.start()
+        defines = beamline_defines(PREFIX, zebra, "")
+        process = build_beamline(
+            Path(os.environ.get("BEAMLINE_PROCESS", BEAMLINE_PROCESS_FILE)), defines
+        )
+        await process.start()
+        try:
+            with tempfile.TemporaryDirectory() as file_dir:
+                exposure = await smallest_exposure(process, SCAN, want)
+                figures = await measure_layers(
+                    process, SCAN, points, repeats, exposure, fileDir=file_dir
+                )
+                # the detector triggered externally waits for the motion:
+                # it has no run alone
+                figures["devices"] = {
+                    mri: await measure_layers(
+                        process,
+                        mri,
+                        points,
+                        repeats,
+                        exposure,
+                        runs=not mri.endswith(":DET"),
+                        fileDir=file_dir,
+                    )
+                    for mri in DEVICES
+                }
+            figures["exposure"] = exposure
+            return figures
+        finally:
+            await process.stop()
+    finally:
+        zebra.stop()
+        ioc.stop()
+
+
+async def demo_figures(points: int, repeats: int, exposure: float) -> dict[str, Any]:
+    from malcolm.demo import demo_process
+
+    process = demo_process()
+    await process.start()
+    try:
+        return await measure_layers(process, "SCAN", points, repeats, exposure)
+    finally:
+        await process.stop()
+
+
+def rows(three: dict[str, Any], one: dict[str, Any]) -> list[Row]:
+    ms = 1e3
+    out = []
+    for key, case in (("grid", "10x10 snake grid"), ("spiral", "10,000-point spiral")):
+        ratio = three[key] / one[key]
+        out.append(
+            Row(
+                f"configure {case}, 3 layers",
+                three[key] * ms,
+                "ms",
+                f"<= 3x ({3 * one[key] * ms:.3g} ms)",
+                f"{one[key] * ms:.3g} ms",
+                f"{ratio:.2f}x the single layer",
+            )
+        )
+    devices = three["devices"]
+    for key, case in (("grid", "10x10 grid"), ("spiral", "10,000-point spiral")):
+        slowest = max(devices, key=lambda mri: devices[mri][key])
+        alone = devices[slowest][key]
+        out.append(
+            Row(
+                f"  {case}: slowest device alone ({slowest})",
+                alone * ms,
+                "ms",
+                "-",
+                "-",
+                f"the co-ordination layer adds {(three[key] - alone) * ms:.3g} ms",
+            )
+        )
+    added = three["overhead"] - one["overhead"]
+    out.append(
+        Row(
+            f"run overhead/point at {three['exposure'] * ms:g} ms, 3 layers",
+            three["overhead"] * ms,
+            "ms",
+            "-",
+            f"{one['overhead'] * ms:.3g} ms",
+            f"{three['points']} points",
+        )
+    )
+    out.append(
+        Row(
+            "  added by the 3 layers",
+            added * ms,
+            "ms",
+            "<= 0.1 ms",
+            "-",
+            "3 layers - single layer",
+        )
+    )
+    ran = [mri for mri in devices if "overhead" in devices[mri]]
+    slowest = max(ran, key=lambda mri: devices[mri]["overhead"])
+    alone = devices[slowest]["overhead"]
+    out.append(
+        Row(
+            f"  slowest device's run alone ({slowest})",
+            alone * ms,
+            "ms",
+            "-",
+            "-",
+            f"the co-ordination layer adds {(three['overhead'] - alone) * ms:.3g} ms",
+        )
+    )
+    return out
+
+
+async def measure(points: int, repeats: int, want: float) -> list[Row]:
+    three = await beamline_figures(points, repeats, want)
+    one = await demo_figures(points, repeats, three["exposure"])
+    return rows(three, one)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--points", type=int, default=1000)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument(
+        "--exposure",
+        type=float,
+        default=0.0005,
+        help="exposure asked of validate (it may raise it; default 0.5 ms)",
+    )
+    args = parser.parse_args(argv)
+    from malcolm.sim.beamline_ioc import ca_environment
+
+    os.environ.update(ca_environment())  # before pyepics makes its context
+    print(
+        render(asyncio.run(measure(args.points, args.repeats, args.exposure)), SOURCE)
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,505 @@
+"""The co-ordination layer: a beamline manager's parts over device managers.
+
+A BeamlineManager (``malcolm/blocks/beamline/BeamlineManager.yaml``) is a
+runnable block whose children are runnable device managers (a detector, a
+motor controller, a Zebra): the design document's ``DetectorPart``,
+``MotorPart`` and ``ZebraPart`` with ``input:`` the child's mri. Each is a
+:class:`~malcolm.parts.demo.scan.RunnableChildPart` (so run, pause/seek,
+resume, abort, reset and disable propagate as docs/controllers.md says)
+that also:
+
+- hands its child only the configure arguments the child takes: the scan
+  (``generator``, ``axesToMove``, ``breakpoints``), ``fileDir`` and its raw
+  file's ``formatName`` (``<scan's formatName>-<part name in lower case>``);
+  every child is configured at once (the Configure phase runs them
+  concurrently), so the detector and the Zebra are armed before anything
+  moves;
+- starts the motion last: the :class:`MotorPart`'s run waits until every
+  other child has started its run (or resumed), so no trigger is missed;
+- ends the scan in Fault when its child faults, with ``health`` saying
+  ``<part>: <the child's health>``; when the beamline faults, the children
+  still in the middle of the scan are aborted (the motion stops).
+
+:class:`ScanFilePart` adds ``fileDir``, ``formatName`` and ``fileTemplate``
+to configure and the ``datasets`` table, and writes the scan's one
+NeXus-style file (:mod:`malcolm.io.nexus`) after each run, and after an
+abort with what was done, in a worker thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import re
+from pathlib import Path
+from typing import Any
+
+from malcolm.core import (
+    BadValueError,
+    MalcolmError,
+    NumberArrayMeta,
+    StringArrayMeta,
+    StringMeta,
+    TableMeta,
+)
+from malcolm.fsm import RunnableDevice
+from malcolm.hooks import Task
+
+from .base import Part, PartRegistrar
+from .demo.scan import RunnableChildPart
+
+__all__ = [
+    "DetectorPart",
+    "DeviceChildPart",
+    "MotorPart",
+    "ScanFilePart",
+    "ZebraPart",
+    "datasets_meta",
+]
+
+log = logging.getLogger(__name__)
+
+#: the scan's own arguments, passed on to every child that takes them
+SCAN_PARAMS = ("generator", "axesToMove", "breakpoints")
+#: the beamline's file arguments
+FILE_PARAMS = ("fileDir", "formatName", "fileTemplate")
+#: beamline states in which a child's Fault ends the scan in Fault
+_QUIET_STATES = {"Ready", "Fault", "Disabled", "Disabling", "Resetting"}
+
+
+def datasets_meta() -> TableMeta:
+    """The ``datasets`` table as GDA reads it (pymalcolm's columns)."""
+    return TableMeta(
+        {
+            "name": StringArrayMeta("Dataset name, e.g. det.data", label="Name"),
+            "filename": StringArrayMeta("File, relative to fileDir", label="File"),
+            "type": StringArrayMeta(
+                "primary, secondary, monitor, position_set or position_value",
+                label="Type",
+            ),
+            "rank": NumberArrayMeta("int32", "Dimensions of one point's value"),
+            "path": StringArrayMeta("HDF5 path of the dataset", label="Path"),
+            "uniqueid": StringArrayMeta("HDF5 path of its uniqueid dataset"),
+        },
+        "Datasets of the scan's file",
+        tags=("widget:table",),
+    )
+
+
+def safe_name(text: str) -> str:
+    """``text`` as a file name: lower case, runs of other characters ``_``."""
+    return re.sub(r"[^a-z0-9_.-]+", "_", text.lower()).strip("_") or "scan"
+
+
+class DeviceChildPart(RunnableChildPart):
+    """A runnable device manager (``input``: its mri) in a beamline's scan.
+
+    The child's raw file is ``<fileDir>/<formatName>-<name in lower
+    case>.h5`` (its ``formatName`` argument); a child that takes no
+    ``fileDir`` is given none.
+    """
+
+    #: whether the child moves motors (its run starts after the others')
+    moves = False
+
+    def __init__(
+        self, name: str, input: str | None = None, mri: str | None = None
+    ) -> None:
+        if input is not None and mri is not None and input != mri:
+            raise ValueError(f"input {input!r} and mri {mri!r} name different blocks")
+        target = input if input is not None else mri
+        if not target:
+            raise ValueError("needs an 'input' (the mri of the block it controls)")
+        super().__init__(name, target)
+        self.started = asyncio.Event()
+        self._watches: list[Any] = []
+        self._child_state: Any = None
+        self._abort_fut: asyncio.Future[Any] | None = None
+
+    @property
+    def input(self) -> str:
+        return self.mri
+
+    def setup(self, registrar: PartRegistrar) -> None:
+        super().setup(registrar)
+        self._block = registrar.controller.block
+
+    # ---- what the child is given
+    def child_takes(self) -> set[str]:
+        """The arguments the child's configure() takes (none if unknown)."""
+        controller = self._controller
+        assert controller is not None and controller.process is not None
+        try:
+            takes = controller.process.get([self.mri, "configure", "meta", "takes"])
+        except LookupError:
+            return set()
+        elements = getattr(takes, "elements", None)
+        if elements is None and isinstance(takes, dict):
+            elements = takes.get("elements", {})
+        return set(elements or ())
+
+    def raw_name(self, device: Any) -> str:
+        """The child's ``formatName``: the scan's, then the part's name."""
+        scan = device.params.get("formatName") or safe_name(device.mri)
+        return f"{scan}-{self.name.lower()}"
+
+    def _child_params(self, device: Any) -> dict[str, Any]:
+        takes = self.child_takes()
+        params = {k: device.params[k] for k in SCAN_PARAMS if k in device.params}
+        if "fileDir" in takes:
+            params["fileDir"] = device.params.get("fileDir", "")
+        if "formatName" in takes:
+            params["formatName"] = self.raw_name(device)
+        return {k: v for k, v in params.items() if k in takes or k == "generator"}
+
+    @RunnableDevice.Validate
+    async def validate(self, task: Task, device: Any) -> dict[str, Any]:
+        tweaks = await super().validate(task, device)
+        return {k: v for k, v in tweaks.items() if k in SCAN_PARAMS}
+
+    @RunnableDevice.Configure
+    async def configure(self, task: Task, device: Any) -> None:
+        self._watch(task)
+        try:
+            await super().configure(task, device)
+        except MalcolmError as e:
+            raise MalcolmError(f"{self.name}: {e}") from None
+
+    # ---- run: the motion last
+    @RunnableDevice.PreRun
+    async def pre_run(self) -> None:
+        self.started = asyncio.Event()
+
+    def siblings(self) -> list[DeviceChildPart]:
+        assert self._controller is not None
+        return [
+            p
+            for p in self._controller.parts.values()
+            if isinstance(p, DeviceChildPart) and p is not self
+        ]
+
+    def _note_started(self, _: Any = None) -> None:
+        if not (self.allowed_now("run") or self.allowed_now("resume")):
+            self.started.set()
+
+    def allowed_now(self, method: str) -> bool:
+        controller = self._controller
+        assert controller is not None and controller.process is not None
+        try:
+            return bool(controller.process.get([self.mri, method, "meta", "writeable"]))
+        except LookupError:
+            return False
+
+    @RunnableDevice.Run
+    async def run(self, task: Task, device: Any) -> None:
+        if self.moves:
+            waits = [p.started.wait() for p in self.siblings() if not p.moves]
+            if waits:
+                await asyncio.gather(*waits)
+        process = task.process
+        subs = [
+            process.subscribe(
+                [self.mri, method, "meta", "writeable"], self._note_started, False
+            )
+            for method in ("run", "resume")
+        ]
+        try:
+            await super().run(task, device)
+        except asyncio.CancelledError:
+            raise
+        except MalcolmError as e:
+            raise MalcolmError(f"{self.name}: {self.child_health(e)}") from None
+        finally:
+            self.started.set()
+            for sub in subs:
+                process.unsubscribe(sub)
+
+    def child_health(self, error: BaseException) -> str:
+        """What went wrong with the child: its health if it says, else
+        the error."""
+        controller = self._controller
+        assert controller is not None and controller.process is not None
+        with contextlib.suppress(LookupError):
+            health = controller.process.get([self.mri, "health", "value"])
+            if health and health != "OK":
+                return str(health)
+        return str(error)
+
+    @RunnableDevice.Abort
+    async def abort(self, task: Task, device: Any) -> None:
+        self._abort_fut = asyncio.ensure_future(super().abort(task, device))
+        await self._abort_fut
+
+    async def aborted(self) -> None:
+        """Wait for the abort of the child that this part's Abort started."""
+        fut = self._abort_fut
+        if fut is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.shield(fut)
+
+    # ---- faults: the child's ends the scan; the beamline's stops the child
+    def _watch(self, task: Task) -> None:
+        if self._watches:
+            return
+        process = task.process
+        assert self._controller is not None
+        own = self._controller.mri
+        self._watches = [
+            process.subscribe(
+                [self.mri, "state", "value"], self._on_child_state, delta=False
+            ),
+            process.subscribe([own, "state", "value"], self._on_own_state, delta=False),
+        ]
+
+    def _on_child_state(self, state: Any) -> None:
+        # only a move into Fault counts: a child found in Fault when the
+        # watch starts is reset by Configure, as RunnableChildPart does
+        before, self._child_state = self._child_state, state
+        controller = self._controller
+        if state != "Fault" or before in (None, "Fault") or controller is None:
+            return
+        if controller.block.state.value in _QUIET_STATES:
+            return
+        reason = f"{self.name}: {self.child_health(MalcolmError('Fault'))}"
+        controller.fault_now(reason)
+
+    def _on_own_state(self, state: Any) -> None:
+        if state != "Fault" or self._controller is None:
+            return
+        process = self._controller.process
+        if process is None or not self.allowed_now("abort"):
+            return
+        if self.allowed_now("configure") or self.allowed_now("reset"):
+            return
+
+        async def stop_child() -> None:
+            with contextlib.suppress(Exception):
+                await process.post([self.mri, "abort"])
+
+        fut = asyncio.ensure_future(stop_child())
+        fut.add_done_callback(lambda f: f.cancelled() or f.exception())
+
+
+class DetectorPart(DeviceChildPart):
+    """A detector manager in the scan: armed at configure, waits for frames."""
+
+
+class ZebraPart(DeviceChildPart):
+    """A Zebra manager in the scan: armed before the motion starts."""
+
+
+class MotorPart(DeviceChildPart):
+    """A motor controller manager: its run (the motion) starts once the
+    others have started theirs; its ``simultaneousAxes`` become the
+    beamline's."""
+
+    moves = True
+
+    @RunnableDevice.Init
+    async def init(self, task: Task) -> None:
+        self._follow_axes(task)
+
+    @RunnableDevice.Reset
+    async def reset(self, task: Task, device: Any) -> None:
+        await super().reset(task, device)
+        self._follow_axes(task)
+
+    def _follow_axes(self, task: Task) -> None:
+        if getattr(self, "_axes_sub", None) is not None:
+            return
+        try:
+            self._axes_sub = task.process.subscribe(
+                [self.mri, "simultaneousAxes", "value"], self._set_axes, delta=False
+            )
+        except LookupError:
+            self._axes_sub = None
+
+    def _set_axes(self, axes: Any) -> None:
+        if axes is not None and "simultaneousAxes" in self._block:
+            self._block.simultaneousAxes.set_value(list(axes))
+
+
+class ScanFilePart(Part):
+    """The scan's one file: ``<fileDir>/<fileTemplate % formatName>``.
+
+    configure() takes ``fileDir`` ("" = no file; default ``file_dir``),
+    ``formatName`` (default:
+    the block's mri in lower case) and ``fileTemplate`` (default
+    ``%s.nxs``). After PostConfigure ``datasets`` lists what the file will
+    hold; after each run (PostRunArmed, PostRunReady) and after an abort the
+    file is (re)written from the children's raw files, in a worker thread.
+    """
+
+    def __init__(self, name: str = "file", file_dir: str = "") -> None:
+        super().__init__(name)
+        self.file_dir = file_dir
+        self.path: Path | None = None
+        self.last_result: Any = None
+
+    def setup(self, registrar: PartRegistrar) -> None:
+        self._controller = registrar.controller
+        registrar.add_configure_arg(
+            "fileDir",
+            StringMeta("Directory of the scan's files; '' = none"),
+            self.file_dir,
+        )
+        registrar.add_configure_arg(
+            "formatName", StringMeta("Name of the scan's file (default: the mri)"), ""
+        )
+        registrar.add_configure_arg(
+            "fileTemplate", StringMeta("The file's name, % formatName"), "%s.nxs"
+        )
+        self.datasets = registrar.add_attribute("datasets", datasets_meta(), _table([]))
+
+    def devices(self) -> list[DeviceChildPart]:
+        return [
+            p for p in self._controller.parts.values() if isinstance(p, DeviceChildPart)
+        ]
+
+    @RunnableDevice.Validate
+    async def validate(self, task: Task, device: Any) -> dict[str, Any]:
+        template = device.params.get("fileTemplate", "%s.nxs")
+        try:
+            name = template % "x"
+        except (TypeError, ValueError) as e:
+            raise BadValueError(
+                f"{device.mri}.configure.fileTemplate: {template!r} must hold"
+                f" one %s ({e})"
+            ) from None
+        if "/" in name:
+            raise BadValueError(
+                f"{device.mri}.configure.fileTemplate: {template!r} must name a"
+                " file, not a path"
+            )
+        return {}
+
+    @RunnableDevice.Configure
+    async def configure(self, task: Task, device: Any) -> None:
+        file_dir = device.params.get("fileDir", "")
+        if not file_dir:
+            self.path = None
+            return
+        name = device.params.get("formatName") or safe_name(device.mri)
+        self.path = Path(file_dir) / (device.params.get("fileTemplate") % name)
+
+    @RunnableDevice.PostConfigure
+    async def post_configure(self, task: Task, device: Any) -> None:
+        if self.path is None:
+            self.datasets.set_value(_table([]))
+            return
+        rows = self.child_rows(task, device)
+        names = {r.name for r in rows}
+        points = device.points
+        axes = list(points.axes) if points is not None else []
+        from malcolm.io.nexus import DatasetRow
+
+        out = [
+            DatasetRow(
+                r.name,
+                self.path.name,
+                r.type,
+                r.rank,
+                f"/entry/{r.group}/{r.leaf}",
+                "/entry/uniqueid",
+            )
+            for r in rows
+        ]
+        for axis in axes:
+            if f"{axis}.value_set" not in names:
+                out.append(
+                    DatasetRow(
+                        f"{axis}.value_set",
+                        self.path.name,
+                        "position_set",
+                        0,
+                        f"/entry/{axis}/value_set",
+                        "/entry/uniqueid",
+                    )
+                )
+        self.datasets.set_value(_table(out))
+
+    def child_rows(self, task: Task, device: Any) -> list[Any]:
+        """The ``datasets`` rows of every device child that has them; a
+        name the child gave under its raw file's name (``scan-det.data``)
+        is put under the part's name in lower case (``det.data``)."""
+        from dataclasses import replace
+
+        from malcolm.io.nexus import rows_from_table
+
+        rows = []
+        for part in self.devices():
+            try:
+                table = task.process.get([part.mri, "datasets", "value"])
+            except LookupError:
+                continue
+            if not table:
+                continue
+            raw = f"{part.raw_name(device)}."
+            for row in rows_from_table(_columns(table)):
+                if row.name.startswith(raw):
+                    group = part.name.lower()
+                    row = replace(row, name=group + "." + row.name[len(raw) :])
+                rows.append(row)
+        return rows
+
+    @RunnableDevice.PostRunArmed
+    async def post_run_armed(self, task: Task, device: Any) -> None:
+        await self.write(task, device)
+
+    @RunnableDevice.PostRunReady
+    async def post_run_ready(self, task: Task, device: Any) -> None:
+        await self.write(task, device)
+
+    @RunnableDevice.Abort
+    async def abort(self, task: Task, device: Any) -> None:
+        await asyncio.sleep(0)  # the children's parts start their aborts
+        await asyncio.gather(*(p.aborted() for p in self.devices()))
+        if device.points is not None and device.completedSteps > 0:
+            await self.write(task, device)
+
+    async def write(self, task: Task, device: Any) -> None:
+        """Assemble the file in a worker thread; problems are logged (the
+        rest is written) and kept in ``last_result``."""
+        if self.path is None or device.points is None:
+            return
+        from malcolm.io.nexus import assemble
+
+        rows = self.child_rows(task, device)
+        points = device.points.copy()
+        path = self.path
+        attrs = {"scan_mri": device.mri, "completed_steps": device.completedSteps}
+
+        def work() -> Any:
+            import numpy as np  # loaded with the first file, not at start-up
+
+            demands = {
+                axis: np.concatenate(list(points.column("positions", axis)))
+                for axis in points.axes
+            }
+            return assemble(path, path.parent, rows, points.shape, demands, attrs)
+
+        self.last_result = result = await asyncio.to_thread(work)
+        for problem in result.problems:
+            log.warning("%s: %s: %s", device.mri, path, problem)
+
+
+def _columns(table: Any) -> dict[str, Any]:
+    """A table value (a Table or a dict of columns) as a dict of columns."""
+    if isinstance(table, dict):
+        return {k: v for k, v in table.items() if k != "typeid"}
+    to_dict = getattr(table, "to_dict", None)
+    if to_dict is not None:
+        return {k: v for k, v in to_dict().items() if k != "typeid"}
+    return {k: table[k] for k in table}
+
+
+def _table(rows: list[Any]) -> dict[str, list[Any]]:
+    return {
+        "name": [r.name for r in rows],
+        "filename": [r.filename for r in rows],
+        "type": [r.type for r in rows],
+        "rank": [r.rank for r in rows],
+        "path": [r.path for r in rows],
+        "uniqueid": [r.uniqueid for r in rows],
+    }
