@@ -1,5 +1,5 @@
-"""Parts that control areaDetector (ADCore) blocks, and the design document's
-thin co-ordination parts.
+"""Parts that control areaDetector (ADCore) blocks (and, re-exported from
+:mod:`.coordination`, the design document's co-ordination parts).
 
 :class:`PosPluginPart` does what the design document's example does, with
 the Task API's async calls: at Configure it clears the position plugin,
@@ -20,6 +20,7 @@ from malcolm.hooks import Task
 from malcolm.sim.position_plugin import PositionPlugin
 
 from .base import ChildPart, Controls
+from .coordination import DetectorPart, MotorPart, ZebraPart
 
 __all__ = [
     "DetectorPart",
@@ -139,15 +140,3 @@ class InputChildPart(ChildPart):
     @property
     def input(self) -> str:
         return self.mri
-
-
-class DetectorPart(InputChildPart):
-    """Co-ordinates a detector manager in a scan (no behaviour yet)."""
-
-
-class ZebraPart(InputChildPart):
-    """Co-ordinates a Zebra in a scan (no behaviour yet)."""
-
-
-class MotorPart(InputChildPart):
-    """Co-ordinates a motor controller in a scan (no behaviour yet)."""
