@@ -19,7 +19,7 @@ from malcolm.fsm import AreaDetectorRunnableDevice
 from malcolm.hooks import Task
 from malcolm.sim.position_plugin import PositionPlugin
 
-from .base import ChildPart, Controls
+from .base import ChildPart, Controls, input_mri
 from .coordination import DetectorPart, MotorPart, ZebraPart
 
 __all__ = [
@@ -130,12 +130,7 @@ class InputChildPart(ChildPart):
     def __init__(
         self, name: str, input: str | None = None, mri: str | None = None
     ) -> None:
-        if input is not None and mri is not None and input != mri:
-            raise ValueError(f"input {input!r} and mri {mri!r} name different blocks")
-        target = input if input is not None else mri
-        if not target:
-            raise ValueError("needs an 'input' (the mri of the block it controls)")
-        super().__init__(name, target)
+        super().__init__(name, input_mri(input, mri))
 
     @property
     def input(self) -> str:

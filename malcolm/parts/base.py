@@ -168,5 +168,16 @@ class ChildPart(Part):
 ChildControllerPart = ChildPart
 
 
+def input_mri(input: str | None, mri: str | None) -> str:
+    """The mri a part's ``input`` (the design document's name) or ``mri``
+    gives; both may be given only if they agree."""
+    if input is not None and mri is not None and input != mri:
+        raise ValueError(f"input {input!r} and mri {mri!r} name different blocks")
+    target = input if input is not None else mri
+    if not target:
+        raise ValueError("needs an 'input' (the mri of the block it controls)")
+    return target
+
+
 def is_async(func: Callable[..., Any]) -> bool:
     return inspect.iscoroutinefunction(func)

@@ -46,7 +46,7 @@ from malcolm.core import (
 from malcolm.fsm import RunnableDevice
 from malcolm.hooks import Task
 
-from .base import Part, PartRegistrar
+from .base import Part, PartRegistrar, input_mri
 from .demo.scan import RunnableChildPart
 
 __all__ = [
@@ -106,12 +106,7 @@ class DeviceChildPart(RunnableChildPart):
     def __init__(
         self, name: str, input: str | None = None, mri: str | None = None
     ) -> None:
-        if input is not None and mri is not None and input != mri:
-            raise ValueError(f"input {input!r} and mri {mri!r} name different blocks")
-        target = input if input is not None else mri
-        if not target:
-            raise ValueError("needs an 'input' (the mri of the block it controls)")
-        super().__init__(name, target)
+        super().__init__(name, input_mri(input, mri))
         self.started = asyncio.Event()
         self._watches: list[Any] = []
         self._child_state: Any = None
