@@ -38,15 +38,13 @@ from typing import Any
 from malcolm.core import (
     BadValueError,
     MalcolmError,
-    NumberArrayMeta,
-    StringArrayMeta,
     StringMeta,
-    TableMeta,
 )
 from malcolm.fsm import RunnableDevice
 from malcolm.hooks import Task
 
 from .base import Part, PartRegistrar, input_mri
+from .datasets import datasets_meta
 from .demo.scan import RunnableChildPart
 
 __all__ = [
@@ -66,25 +64,6 @@ SCAN_PARAMS = ("generator", "axesToMove", "breakpoints")
 FILE_PARAMS = ("fileDir", "formatName", "fileTemplate")
 #: beamline states in which a child's Fault ends the scan in Fault
 _QUIET_STATES = {"Ready", "Fault", "Disabled", "Disabling", "Resetting"}
-
-
-def datasets_meta() -> TableMeta:
-    """The ``datasets`` table as GDA reads it (pymalcolm's columns)."""
-    return TableMeta(
-        {
-            "name": StringArrayMeta("Dataset name, e.g. det.data", label="Name"),
-            "filename": StringArrayMeta("File, relative to fileDir", label="File"),
-            "type": StringArrayMeta(
-                "primary, secondary, monitor, position_set or position_value",
-                label="Type",
-            ),
-            "rank": NumberArrayMeta("int32", "Dimensions of one point's value"),
-            "path": StringArrayMeta("HDF5 path of the dataset", label="Path"),
-            "uniqueid": StringArrayMeta("HDF5 path of its uniqueid dataset"),
-        },
-        "Datasets of the scan's file",
-        tags=("widget:table",),
-    )
 
 
 def safe_name(text: str) -> str:
@@ -345,7 +324,9 @@ class ScanFilePart(Part):
         registrar.add_configure_arg(
             "fileTemplate", StringMeta("The file's name, % formatName"), "%s.nxs"
         )
-        self.datasets = registrar.add_attribute("datasets", datasets_meta(), _table([]))
+        self.datasets = registrar.add_attribute(
+            "datasets", datasets_meta("Datasets of the scan's file"), _table([])
+        )
 
     def devices(self) -> list[DeviceChildPart]:
         return [

@@ -43,7 +43,7 @@ from malcolm.io import ChannelError
 
 from .adcore import positions_xml
 from .base import Part, PartRegistrar
-from .detector_datasets import dataset_rows, datasets_meta
+from .datasets import dataset_rows, datasets_meta
 
 __all__ = ["DetectorManagerPart"]
 

@@ -16,7 +16,7 @@ import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from malcolm.core import NumberArrayMeta, StringArrayMeta, TableMeta
+from .datasets import datasets_meta
 
 if TYPE_CHECKING:
     import numpy as np
@@ -24,22 +24,6 @@ if TYPE_CHECKING:
 __all__ = ["MotionFile", "datasets_meta", "datasets_rows"]
 
 UNIQUEID = "/entry/uniqueid"
-
-
-def datasets_meta() -> TableMeta:
-    """The ``datasets`` table's columns, as pymalcolm's (GDA reads them)."""
-    return TableMeta(
-        {
-            "name": StringArrayMeta("Dataset name (axis.value, axis.value_set)"),
-            "filename": StringArrayMeta("File it is in, relative to fileDir"),
-            "type": StringArrayMeta("primary, secondary, monitor, position_set..."),
-            "rank": NumberArrayMeta("int32", "Dimensions of one point's value"),
-            "path": StringArrayMeta("HDF5 path of the dataset"),
-            "uniqueid": StringArrayMeta("HDF5 path of its rows' unique ids"),
-        },
-        "Datasets this device writes",
-        tags=("widget:table",),
-    )
 
 
 def value_path(axis: str, kind: str) -> str:

@@ -9,12 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from malcolm.core import (
-    ChoiceArrayMeta,
-    NumberArrayMeta,
-    StringArrayMeta,
-    TableMeta,
-)
+from .datasets import DATASET_TYPES, datasets_meta
 
 __all__ = [
     "COLUMNS",
@@ -34,22 +29,6 @@ TIMESTAMP = "PCAP.TS_TRIG.Value"
 COLUMNS = (POSITION, TIMESTAMP)
 #: the dataset of each row's point + 1
 UNIQUEID = "uniqueid"
-DATASET_TYPES = ("primary", "secondary", "monitor", "position_set", "position_value")
-
-
-def datasets_meta() -> TableMeta:
-    """The ``datasets`` table GDA reads (pymalcolm's columns)."""
-    return TableMeta(
-        {
-            "name": StringArrayMeta("Dataset name, e.g. zebra.COUNTER1.OUT"),
-            "filename": StringArrayMeta("File it is in, relative to fileDir"),
-            "type": ChoiceArrayMeta(DATASET_TYPES, "What the dataset holds"),
-            "rank": NumberArrayMeta("int32", "Dimensions of one point's value"),
-            "path": StringArrayMeta("HDF5 path of the dataset"),
-            "uniqueid": StringArrayMeta("HDF5 path of each row's point + 1"),
-        },
-        "Datasets the last configure writes",
-    )
 
 
 def dataset_rows(prefix: str, filename: str) -> dict[str, list[Any]]:

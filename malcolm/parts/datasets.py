@@ -1,4 +1,5 @@
-"""The ``datasets`` table a device-layer manager reports (issue 13, §2).
+"""The ``datasets`` table every scanning block reports (issue 13, §2): the
+device-layer managers and the beamline's scan file.
 
 GDA reads it (interop.md); a beamline's file assembler uses it to find each
 device's data. Columns as pymalcolm's: ``name`` (``det.data``,
@@ -21,7 +22,9 @@ __all__ = ["DATASET_TYPES", "dataset_rows", "datasets_meta"]
 DATASET_TYPES = ("primary", "secondary", "monitor", "position_set", "position_value")
 
 
-def datasets_meta() -> TableMeta:
+def datasets_meta(
+    description: str = "Datasets this device writes in a scan",
+) -> TableMeta:
     """The meta of a ``datasets`` attribute (read-only)."""
     return TableMeta(
         {
@@ -32,7 +35,7 @@ def datasets_meta() -> TableMeta:
             "path": StringArrayMeta("HDF5 path of the dataset"),
             "uniqueid": StringArrayMeta("HDF5 path of each row's uniqueId"),
         },
-        "Datasets this device writes in a scan",
+        description,
         tags=("widget:table",),
     )
 
