@@ -11,12 +11,13 @@ path of a 1-d int dataset giving each row's point: point index + 1).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Mapping
 from typing import Any
 
 from malcolm.core import BadValueError, NumberArrayMeta, StringArrayMeta, TableMeta
 
-__all__ = ["DATASET_TYPES", "dataset_rows", "datasets_meta"]
+__all__ = ["DATASET_TYPES", "check_file_args", "dataset_rows", "datasets_meta"]
 
 #: the values of the ``type`` column
 DATASET_TYPES = ("primary", "secondary", "monitor", "position_set", "position_value")
@@ -51,3 +52,27 @@ def dataset_rows(rows: Iterable[Mapping[str, Any]]) -> dict[str, tuple[Any, ...]
                 f" {', '.join(DATASET_TYPES)}"
             )
     return datasets_meta().validate(rows)
+
+
+def check_file_args(mri: str, file_dir: str, name: str) -> None:
+    """Refuse (BadValueError naming ``<mri>.configure.<argument>``) a
+    ``formatName`` that is not a plain file name, or a ``fileDir`` that cannot
+    take the file: neither a writeable directory nor one that can be made in
+    one. Nothing is checked without a ``fileDir`` (no file)."""
+    if not file_dir:
+        return
+    if not name or "/" in name or name in (".", ".."):
+        raise BadValueError(
+            f"{mri}.configure.formatName: {name!r} is not a plain file name"
+        )
+    where = file_dir
+    while not os.path.exists(where):
+        parent = os.path.dirname(where.rstrip("/")) or "."
+        if parent == where:
+            break
+        where = parent
+    if not os.path.isdir(where) or not os.access(where, os.W_OK | os.X_OK):
+        raise BadValueError(
+            f"{mri}.configure.fileDir: cannot write {file_dir!r} ({where!r} is"
+            " not a writeable directory)"
+        )

@@ -43,7 +43,7 @@ from malcolm.io import ChannelError
 
 from .adcore import positions_xml
 from .base import Part, PartRegistrar
-from .datasets import dataset_rows, datasets_meta
+from .datasets import check_file_args, dataset_rows, datasets_meta
 
 __all__ = ["DetectorManagerPart"]
 
@@ -188,10 +188,7 @@ class DetectorManagerPart(Part):
             raise BadValueError(
                 f"{self._mri}.configure.fileDir: {file_dir!r} is not an absolute path"
             )
-        if file_dir and (not name or "/" in name):
-            raise BadValueError(
-                f"{self._mri}.configure.formatName: {name!r} is not a file name"
-            )
+        check_file_args(self._mri, file_dir, name)
         if self.trigger_mode.value != "External":
             exposure = float(device.params.get("exposure") or 0.0)
             points = device.points

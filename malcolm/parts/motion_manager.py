@@ -24,7 +24,6 @@ manager's scan over a ``pmac.TrajectoryScan`` child and two
 from __future__ import annotations
 
 import asyncio
-import os
 from typing import TYPE_CHECKING, Any
 
 from malcolm.core import BadValueError, MalcolmError, StringMeta
@@ -32,6 +31,7 @@ from malcolm.fsm import RunnableDevice
 from malcolm.io.channel import ChannelError
 
 from .base import Part, PartRegistrar
+from .datasets import check_file_args
 from .motion_file import MotionFile, datasets_meta, datasets_rows
 
 if TYPE_CHECKING:
@@ -133,7 +133,11 @@ class MotionTrajectoryPart(Part):
     @RunnableDevice.Validate
     async def validate(self, task: Task, device: Any) -> dict[str, Any]:
         mri = self.controller.mri
-        _check_file_args(mri, device.params)
+        check_file_args(
+            mri,
+            str(device.params.get("fileDir") or ""),
+            str(device.params.get("formatName") or ""),
+        )
         points = device.points
         moved = self._moved(points)
         if not moved:
@@ -428,27 +432,3 @@ class MotionTrajectoryPart(Part):
                     "; ".join(f"{m}: {self._value(m, 'health')}" for m in lost)
                 )
             await asyncio.sleep(0.05)
-
-
-def _check_file_args(mri: str, params: dict[str, Any]) -> None:
-    """Refuse a fileDir that cannot take the file, or a formatName that is
-    not a plain file name (BadValueError naming the argument)."""
-    file_dir = str(params.get("fileDir") or "")
-    name = str(params.get("formatName") or "")
-    if not file_dir:
-        return
-    if not name or "/" in name or name in (".", ".."):
-        raise BadValueError(
-            f"{mri}.configure.formatName: {name!r} is not a plain file name"
-        )
-    where = file_dir
-    while not os.path.exists(where):
-        parent = os.path.dirname(where.rstrip("/")) or "."
-        if parent == where:
-            break
-        where = parent
-    if not os.path.isdir(where) or not os.access(where, os.W_OK | os.X_OK):
-        raise BadValueError(
-            f"{mri}.configure.fileDir: cannot write {file_dir!r} ({where!r} is"
-            " not a writeable directory)"
-        )

@@ -46,6 +46,7 @@ from malcolm.io.zebra2 import (
 )
 
 from .base import Part, PartRegistrar
+from .datasets import check_file_args
 from .zebra2_scan_datasets import dataset_rows, datasets_meta
 
 if TYPE_CHECKING:
@@ -229,15 +230,7 @@ class Zebra2ScanPart(Part):
     @RunnableDevice.Validate
     async def validate(self, task: Task, device: Any) -> dict[str, Any]:
         name = str(device.params.get("formatName") or self.default_name)
-        if not name or "/" in name or name in (".", ".."):
-            raise BadValueError(
-                f"{device.mri}.configure.formatName: {name!r} is not a file name"
-            )
-        file_dir = str(device.params.get("fileDir") or "")
-        if file_dir and os.path.exists(file_dir) and not os.path.isdir(file_dir):
-            raise BadValueError(
-                f"{device.mri}.configure.fileDir: {file_dir!r} is not a directory"
-            )
+        check_file_args(device.mri, str(device.params.get("fileDir") or ""), name)
         return {}
 
     @RunnableDevice.Configure
