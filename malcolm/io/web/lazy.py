@@ -57,9 +57,7 @@ class LazyWebServer:
         return f"http://{host}:{self.port}/"
 
     def _first_connection(self) -> None:
-        self._loop.remove_reader(self.sock.fileno())
-        task = self.started()
-        task.add_done_callback(self._report)
+        self.started().add_done_callback(self._report)
 
     def _report(self, task: asyncio.Future[WebServer]) -> None:
         if task.cancelled():
