@@ -123,6 +123,18 @@ class MotionTrajectoryPart(Part):
             return []
         return [a for a in points.axes if a in self.axes]
 
+    def _already_at(self, motor: str, target: float) -> bool:
+        """Whether ``motor`` is still and within its retry deadband (RDBD,
+        ``deadband``) of ``target``: a motor record would not move there, so
+        no put is made."""
+        block = self.controller.process.get_block(motor)
+        if "deadband" not in block or not block["doneMoving"].value:
+            return False
+        position, deadband = block["position"].value, block["deadband"].value
+        if position is None or deadband is None:
+            return False
+        return abs(float(position) - float(target)) <= float(deadband)
+
     def _capacity(self) -> int:
         return self.max_points
 
@@ -278,8 +290,13 @@ class MotionTrajectoryPart(Part):
             await task.process.post([self.traj, "buildProfile"])
 
         # the run-up move (the scan's motors to their start, at their
-        # velocity) and the profile's loading and build at the same time
-        run_up = {(self.axes[a][1], "position"): profile.run_up[a] for a in moved}
+        # velocity) and the profile's loading and build at the same time;
+        # a motor already there (within its deadband) is not moved
+        run_up = {
+            (self.axes[a][1], "position"): profile.run_up[a]
+            for a in moved
+            if not self._already_at(self.axes[a][1], profile.run_up[a])
+        }
         jobs = [asyncio.ensure_future(task.put(run_up)), asyncio.ensure_future(load())]
         try:
             await asyncio.gather(*jobs)
