@@ -52,6 +52,9 @@ LAST_EVENT_WAIT = 5.0
 PROGRESS_PERIOD = 0.01
 #: steps of the scan checked at a time in validate
 CHECK_CHUNK = 65536
+#: a scan of at most this many steps is checked on the loop (well under a
+#: millisecond: less than the hop to a worker thread and back)
+CHECK_ON_LOOP = 1000
 
 
 class MotionTrajectoryPart(Part):
@@ -83,6 +86,8 @@ class MotionTrajectoryPart(Part):
         #: the profile last executed and the time stamps of the readbacks
         #: before it, until its rows are written
         self._executed: tuple[Profile, dict[str, float]] | None = None
+        #: (scan content, axes, limits) of the last scan validate passed
+        self._checked_ok: Any = None
 
     # ---- set up
     def setup(self, registrar: PartRegistrar) -> None:
@@ -178,7 +183,18 @@ class MotionTrajectoryPart(Part):
             )
             for a in moved
         }
-        await asyncio.to_thread(self._check_points, points, moved, limits)
+        # the same scan checked against the same limits passed already (a
+        # beamline's validate, then its configure of this block)
+        key = None
+        if points.content is not None:
+            key = (points.content, tuple(moved), tuple(limits.items()))
+            if key == self._checked_ok:
+                return {}
+        if points.size <= CHECK_ON_LOOP:
+            self._check_points(points, moved, limits)
+        else:
+            await asyncio.to_thread(self._check_points, points, moved, limits)
+        self._checked_ok = key
         return {}
 
     def _check_points(
