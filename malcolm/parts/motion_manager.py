@@ -26,7 +26,7 @@ from __future__ import annotations
 import asyncio
 from typing import TYPE_CHECKING, Any
 
-from malcolm.core import BadValueError, MalcolmError, StringMeta
+from malcolm.core import AlarmSeverity, BadValueError, MalcolmError, StringMeta
 from malcolm.fsm import RunnableDevice
 from malcolm.io.channel import ChannelError
 
@@ -139,6 +139,21 @@ class MotionTrajectoryPart(Part):
         if position is None or deadband is None:
             return False
         return abs(float(position) - float(target)) <= float(deadband)
+
+    def _holds(self, field: str, value: Any) -> bool:
+        """Whether the trajectory child's ``field`` (kept up to date by its
+        channel) holds ``value`` already, element for element."""
+        import numpy as np
+
+        attr = self.controller.process.get_block(self.traj)[field]
+        if attr.alarm.severity >= AlarmSeverity.INVALID_ALARM:  # not connected
+            return False
+        now = attr.value
+        if not isinstance(value, np.ndarray):
+            return bool(now == value)
+        if now is None or len(now) != len(value):
+            return False
+        return bool(np.array_equal(np.asarray(now, dtype=value.dtype), value))
 
     def _capacity(self) -> int:
         return self.max_points
@@ -300,6 +315,9 @@ class MotionTrajectoryPart(Part):
         arrays[(self.traj, "times")] = profile.times
         arrays[(self.traj, "pointIndices")] = profile.indices
         arrays[(self.traj, "numPoints")] = profile.size
+        # what the controller holds already (a scan configured again) is not
+        # sent again: 20,001-point arrays cost the IOC and the client
+        arrays = {k: v for k, v in arrays.items() if not self._holds(k[1], v)}
 
         async def load() -> None:
             await task.put(arrays)

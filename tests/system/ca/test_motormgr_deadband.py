@@ -1,5 +1,6 @@
-"""The simulated motors' retry deadband (RDBD), and the MotorControllerManager
-leaving a motor already at its run-up start where it is."""
+"""The simulated motors' retry deadband (RDBD), and a scan configured again:
+the MotorControllerManager leaves a motor already at its run-up start where
+it is, and sends no array the controller holds already."""
 
 from __future__ import annotations
 
@@ -56,6 +57,54 @@ def test_a_configure_to_where_the_motors_are_issues_no_move(ioc):
             await process.post([MRI, "configure"], {"generator": line(20, 2.0, 4.0)})
             assert False in done
             assert a.position.value == pytest.approx(there + 1.0, abs=1e-3)
+        finally:
+            await process.stop()
+
+    run(scenario())
+
+
+def test_arrays_the_controller_holds_are_not_sent_again_but_built(ioc, tmp_path):
+    process = manager_process()
+    calls: list[tuple[str, ...]] = []  # the puts and calls to the trajectory
+    put, post = process.put, process.post
+
+    async def putting(path: list[str], value: object) -> None:
+        calls.append(("put", *path))
+        await put(path, value)
+
+    async def posting(path: list[str], *args: object) -> object:
+        calls.append(("call", *path))
+        return await post(path, *args)
+
+    process.put, process.post = putting, posting  # type: ignore[method-assign]
+    traj = f"{MRI}:traj"
+
+    async def scenario():
+        await process.start()
+        try:
+            block = process.get_block(MRI)
+            for start in (0.37, 1.0):  # whatever the IOC held: new positions
+                calls.clear()
+                generator = line(20, start, start + 2.0)
+                await process.post([MRI, "configure"], {"generator": generator})
+                assert ("put", traj, "positionsA") in calls
+                await process.post([MRI, "reset"])
+            calls.clear()
+            await process.post(
+                [MRI, "configure"],
+                {"generator": line(20, 1.0, 3.0), "fileDir": str(tmp_path)},
+            )
+            assert block.state.value == "Armed"
+            # nothing sent again, the profile built all the same
+            assert not [c for c in calls if c[0] == "put" and c[1] == traj]
+            assert ("call", traj, "buildProfile") in calls
+            await process.post([MRI, "run"])
+            assert block.completedSteps.value == 20
+            await process.post([MRI, "reset"])
+            calls.clear()
+            # another scan: its arrays go
+            await process.post([MRI, "configure"], {"generator": line(20, 2.0, 4.0)})
+            assert ("put", traj, "positionsA") in calls
         finally:
             await process.stop()
 
