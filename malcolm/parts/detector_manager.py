@@ -27,6 +27,7 @@ the positions it has used since it was cleared).
 from __future__ import annotations
 
 import asyncio
+import functools
 import os
 from typing import Any
 
@@ -58,6 +59,11 @@ SETTLE_TIMEOUT = 10.0
 #: HDF5 paths the writer uses
 DATA_PATH = "/entry/data"
 UID_PATH = "/entry/uid"
+
+
+#: the XML of the last few batches (a scan configured again, or another of
+#: the same size, loads the same batches: 65 kB of text each)
+_batch_xml = functools.lru_cache(maxsize=8)(positions_xml)
 
 
 class DetectorManagerPart(Part):
@@ -289,7 +295,7 @@ class DetectorManagerPart(Part):
         while self._loaded < upto:
             start = self._loaded
             self._loaded = stop = min(upto, start + XML_BATCH)  # taken now
-            puts.append(task.put_async(self.pos.xml, positions_xml(start, stop)))
+            puts.append(task.put_async(self.pos.xml, _batch_xml(start, stop)))
         await task.wait_all(puts)
 
     async def _arm(

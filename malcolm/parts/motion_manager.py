@@ -88,6 +88,9 @@ class MotionTrajectoryPart(Part):
         self._executed: tuple[Profile, dict[str, float]] | None = None
         #: (scan content, axes, limits) of the last scan validate passed
         self._checked_ok: Any = None
+        #: trajectory field -> (its time stamp, the array it holds), for the
+        #: arrays sent (or found there) last
+        self._sent: dict[str, tuple[float, Any]] = {}
 
     # ---- set up
     def setup(self, registrar: PartRegistrar) -> None:
@@ -142,7 +145,10 @@ class MotionTrajectoryPart(Part):
 
     def _holds(self, field: str, value: Any) -> bool:
         """Whether the trajectory child's ``field`` (kept up to date by its
-        channel) holds ``value`` already, element for element."""
+        channel) holds ``value`` already, element for element. An array
+        this part sent is remembered with the IOC's time stamp of it: while
+        the field shows that time stamp, comparing with what was sent
+        (numpy) is enough; otherwise the field's value is compared."""
         import numpy as np
 
         attr = self.controller.process.get_block(self.traj)[field]
@@ -153,7 +159,21 @@ class MotionTrajectoryPart(Part):
             return bool(now == value)
         if now is None or len(now) != len(value):
             return False
-        return bool(np.array_equal(np.asarray(now, dtype=value.dtype), value))
+        sent = self._sent.get(field)
+        if sent is not None and sent[0] == attr.timeStamp.to_time():
+            same = np.array_equal(sent[1], value)
+        else:
+            same = np.array_equal(np.asarray(now, dtype=value.dtype), value)
+        if same:
+            self._remember(field, value)
+        return same
+
+    def _remember(self, field: str, value: Any) -> None:
+        """Note that the trajectory child's ``field`` holds array ``value``
+        as of its time stamp now."""
+        if hasattr(value, "dtype"):
+            attr = self.controller.process.get_block(self.traj)[field]
+            self._sent[field] = (attr.timeStamp.to_time(), value)
 
     def _capacity(self) -> int:
         return self.max_points
@@ -320,7 +340,11 @@ class MotionTrajectoryPart(Part):
         arrays = {k: v for k, v in arrays.items() if not self._holds(k[1], v)}
 
         async def load() -> None:
+            for _, field in arrays:
+                self._sent.pop(field, None)
             await task.put(arrays)
+            for (_, field), value in arrays.items():
+                self._remember(field, value)
             await task.process.post([self.traj, "buildProfile"])
 
         # the run-up move (the scan's motors to their start, at their
