@@ -52,8 +52,9 @@ LAST_EVENT_WAIT = 5.0
 PROGRESS_PERIOD = 0.01
 #: steps of the scan checked at a time in validate
 CHECK_CHUNK = 65536
-#: a scan of at most this many steps is checked on the loop (well under a
-#: millisecond: less than the hop to a worker thread and back)
+#: a scan (or run) of at most this many steps is checked, and its profile
+#: computed, on the loop (well under a millisecond: less than the hop to a
+#: worker thread and back); a bigger one in a worker thread
 CHECK_ON_LOOP = 1000
 
 
@@ -311,11 +312,12 @@ class MotionTrajectoryPart(Part):
         if not moved or start >= points.size:
             return
         stop = self.controller.next_configured(start)
-        chunk = points.chunk(start, stop, moved)
         accel = max(float(self._value(self.axes[a][1], "acceleration")) for a in moved)
         velocity = {a: float(self._value(self.axes[a][1], "velocity")) for a in moved}
-        try:
-            profile = build_profile(
+
+        def compute() -> Profile:
+            chunk = points.chunk(start, stop, moved)
+            return build_profile(
                 start,
                 chunk.lower,
                 chunk.positions,
@@ -325,6 +327,15 @@ class MotionTrajectoryPart(Part):
                 velocity,
                 moved,
             )
+
+        try:
+            # a big run's profile (milliseconds of numpy) is computed in a
+            # worker thread: the loop, and the other devices a beamline is
+            # configuring at the same time, go on meanwhile
+            if stop - start <= CHECK_ON_LOOP:
+                profile = compute()
+            else:
+                profile = await asyncio.to_thread(compute)
         except ProfileError as e:
             raise BadValueError(f"{self.controller.mri}: {e}") from None
         capacity = self._capacity()
