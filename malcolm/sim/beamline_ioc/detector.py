@@ -15,6 +15,15 @@ Every frame the driver makes goes to the plugins whose callbacks are
 enabled: the position plugin tags it with the next position (and its
 uniqueId), the writer appends it (and its position) to the file with h5py.
 A frame's pixels all hold its uniqueId (modulo 65536).
+
+Frames come on an absolute schedule: in Internal mode frame k is due at
+the acquisition's start plus k periods (a late frame is made at once, so
+lateness does not add up); in External mode a frame is made when its
+trigger comes (the trajectory's schedule). The period is at least
+:data:`MIN_PERIOD`, the shortest this simulation sustains (docs/devices.md).
+The counters (``ArrayCounter_RBV``, ``NumImagesCounter_RBV``) are posted at
+most every :data:`~.status.STATUS_PERIOD` (:mod:`.status`), and always
+before the ``Acquire`` put completes.
 """
 
 from __future__ import annotations
@@ -34,8 +43,10 @@ from .plugins import (
     enable,
     stop_requested,
 )
+from .status import Throttled
 
 __all__ = [
+    "MIN_PERIOD",
     "Detector",
     "HDFWriter",
     "PositionPlugin",
@@ -43,6 +54,11 @@ __all__ = [
     "make_detector",
     "stop_requested",
 ]
+
+
+#: the shortest frame period (s) the simulated detector and trajectory
+#: sustain with malcolm following them (measured: docs/devices.md)
+MIN_PERIOD = 0.0005
 
 
 class Detector(Stoppable):
@@ -65,10 +81,17 @@ class Detector(Stoppable):
         )
         self.mode = self._choice("ImageMode", "Single", "Multiple", "Continuous")
         self.trigger_mode = self._choice("TriggerMode", "Internal", "External")
-        self.counter, self.counter_rbv = demand(
-            "ArrayCounter", builder.longOut, builder.longIn, 0
+        self.counter_rbv = Throttled(
+            builder.longIn("ArrayCounter_RBV", initial_value=0)
         )
-        self.images = builder.longIn("NumImagesCounter_RBV", initial_value=0)
+        self.counter = builder.longOut(
+            "ArrayCounter",
+            initial_value=0,
+            always_update=True,
+            blocking=True,
+            on_update=self._put_counter,
+        )
+        self.images = Throttled(builder.longIn("NumImagesCounter_RBV", initial_value=0))
         self.callbacks, _ = enable("ArrayCallbacks", 1)
         builder.stringIn("Manufacturer_RBV", initial_value="Simulated Detector")
         self.state = builder.mbbIn(
@@ -87,11 +110,23 @@ class Detector(Stoppable):
             blocking=True,
             always_update=True,
         )
-        self.triggers = 0  # External triggers not yet made into frames
         self.triggered = asyncio.Event()
+        #: frames wanted of the External acquisition in progress (None: no
+        #: limit), and made so far; ``None`` while not acquiring External
+        self._external_total: int | None = None
+        self._made = 0
+        self._taking = False
+
+    def _put_counter(self, value: int) -> None:
+        self.counter_rbv.set(value)
+        self.counter_rbv.flush()
 
     def wake(self) -> None:
         self.triggered.set()
+
+    def _counters_done(self) -> None:
+        self.counter_rbv.flush()
+        self.images.flush()
 
     @staticmethod
     def _choice(name: str, *labels: str) -> Any:
@@ -108,9 +143,15 @@ class Detector(Stoppable):
     def trigger(self, point: int = -1) -> None:
         """An External trigger (the trajectory reaching ``point``): one frame,
         if acquiring in External mode; dropped otherwise, as hardware does."""
-        if self.acquire_rbv.get() and self.trigger_mode.get() == 1:
-            self.triggers += 1
-            self.triggered.set()
+        if not self._taking or self._stop:
+            return
+        total = self._external_total
+        if total is not None and self._made >= total:
+            return
+        self._made += 1
+        self._frame(self._made)
+        if total is not None and self._made >= total:
+            self.triggered.set()  # the acquisition is complete
 
     async def _acquire(self, value: int) -> None:
         if not value:
@@ -119,17 +160,19 @@ class Detector(Stoppable):
         mode = self.mode.get()
         total = 1 if mode == 0 else self.num_images.get() if mode == 1 else None
         external = self.trigger_mode.get() == 1
-        self.triggers = 0
         self.triggered.clear()
+        self.images.set(0)
+        self.images.flush()  # reset before the acquisition shows
         self.acquire_rbv.set(1)
         self.state.set(1)
-        self.images.set(0)
         try:
             if external:
                 await self._external(total)
             else:
                 await self._internal(total)
         finally:
+            self._taking = False
+            self._counters_done()
             self.state.set(0)
             self.acquire_rbv.set(0)
 
@@ -138,7 +181,7 @@ class Detector(Stoppable):
         deadline = loop.time()
         made = 0
         while total is None or made < total:
-            deadline += max(self.exposure.get(), self.period.get(), 0.0005)
+            deadline += max(self.exposure.get(), self.period.get(), MIN_PERIOD)
             await asyncio.sleep(max(0.0, deadline - loop.time()))
             if self.stopping(self.acquire):
                 break
@@ -146,18 +189,17 @@ class Detector(Stoppable):
             self._frame(made)
 
     async def _external(self, total: int | None) -> None:
-        made = 0
-        while (total is None or made < total) and not self.stopping(self.acquire):
-            if not self.triggers:
-                self.triggered.clear()
-                try:
-                    await asyncio.wait_for(self.triggered.wait(), 0.05)
-                except TimeoutError:
-                    pass
-                continue
-            self.triggers -= 1
-            made += 1
-            self._frame(made)
+        """Frames are made by :meth:`trigger` as the triggers come; this
+        waits for the last (or a stop)."""
+        self._external_total = total
+        self._made = 0
+        self._taking = True
+        while (total is None or self._made < total) and not self.stopping(self.acquire):
+            self.triggered.clear()
+            try:
+                await asyncio.wait_for(self.triggered.wait(), 0.05)
+            except TimeoutError:
+                pass
 
     def _frame(self, made: int) -> None:
         count = self.counter_rbv.get() + 1
