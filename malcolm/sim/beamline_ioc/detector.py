@@ -20,9 +20,9 @@ Frames come on an absolute schedule: in Internal mode frame k is due at
 the acquisition's start plus k periods (a late frame is made at once, so
 lateness does not add up); in External mode a frame is made when its
 trigger comes (the trajectory's schedule). The period is at least
-:data:`MIN_PERIOD`, the shortest this simulation sustains (docs/devices.md).
+:data:`~.pace.MIN_PERIOD`, the shortest this simulation sustains (:mod:`.pace`).
 The counters (``ArrayCounter_RBV``, ``NumImagesCounter_RBV``) are posted at
-most every :data:`~.status.STATUS_PERIOD` (:mod:`.status`), and always
+most every :data:`~.pace.STATUS_PERIOD` (:mod:`.pace`), and always
 before the ``Acquire`` put completes.
 """
 
@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 from softioc import builder
 
+from .pace import LATE_SLICE, MIN_PERIOD, Throttled
 from .plugins import (
     TEXT,
     HDFWriter,
@@ -43,7 +44,6 @@ from .plugins import (
     enable,
     stop_requested,
 )
-from .status import Throttled
 
 __all__ = [
     "MIN_PERIOD",
@@ -54,11 +54,6 @@ __all__ = [
     "make_detector",
     "stop_requested",
 ]
-
-
-#: the shortest frame period (s) the simulated detector and trajectory
-#: sustain with malcolm following them (measured: docs/devices.md)
-MIN_PERIOD = 0.0005
 
 
 class Detector(Stoppable):
@@ -178,11 +173,17 @@ class Detector(Stoppable):
 
     async def _internal(self, total: int | None) -> None:
         loop = asyncio.get_running_loop()
-        deadline = loop.time()
+        deadline = yielded = loop.time()
         made = 0
         while total is None or made < total:
             deadline += max(self.exposure.get(), self.period.get(), MIN_PERIOD)
-            await asyncio.sleep(max(0.0, deadline - loop.time()))
+            now = loop.time()
+            if deadline > now:
+                await asyncio.sleep(deadline - now)
+                yielded = loop.time()
+            elif now - yielded > LATE_SLICE:  # catching up: let others run
+                await asyncio.sleep(0)
+                yielded = loop.time()
             if self.stopping(self.acquire):
                 break
             made += 1

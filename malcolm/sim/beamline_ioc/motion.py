@@ -36,8 +36,8 @@ would trigger it.
 An execution keeps an absolute schedule: profile point k is due at the
 execution's start plus the times up to k, so a late point is done at once
 and lateness does not add up. ``PointsScanned_RBV`` and the motors' ``RBV``
-are posted at most every :data:`~.status.STATUS_PERIOD` while it runs (as a
-controller's status poll shows its progress; :mod:`.status`), and their
+are posted at most every :data:`~.pace.STATUS_PERIOD` while it runs (as a
+controller's status poll shows its progress; :mod:`.pace`), and their
 final values before ``ReadbacksA``/``B`` and ``ExecuteState_RBV``.
 """
 
@@ -50,11 +50,9 @@ from collections.abc import Callable
 import numpy as np
 from softioc import builder
 
-from .status import Throttled
+from .pace import LATE_SLICE, Throttled
 
 TICK = 0.01  # seconds between position updates of a move
-#: seconds a late trajectory works through due points before it yields
-LATE_SLICE = 0.002
 
 #: bytes of the largest array the IOC serves (50,000 doubles and more)
 MAX_ARRAY_BYTES = 1_000_000

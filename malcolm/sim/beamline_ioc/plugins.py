@@ -26,7 +26,7 @@ until it is done (docs/ca.md), so each has a ``Stop`` record a client can
 put with completion to end it now.
 
 The per-frame counters (``Qty``, ``Index``, ``NumCaptured_RBV``) are posted
-at most every :data:`~.status.STATUS_PERIOD` (:mod:`.status`), as a real
+at most every :data:`~.pace.STATUS_PERIOD` (:mod:`.pace`), as a real
 plugin's are by its driver's callbacks, and always before the busy put that
 they count ends (and at once after a ``Delete`` or a load of positions).
 """
@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from softioc import builder
 
-from .status import Throttled
+from .pace import Throttled
 
 TEXT = 65536  # bytes of a char waveform
 FLUSH_ROWS = 200  # frames the writer keeps before writing them
