@@ -107,7 +107,7 @@ class Detector(Stoppable):
         )
         self.triggered = asyncio.Event()
         #: frames wanted of the External acquisition in progress (None: no
-        #: limit), and made so far; ``None`` while not acquiring External
+        #: limit), frames made so far, and whether one is in progress
         self._external_total: int | None = None
         self._made = 0
         self._taking = False
@@ -138,7 +138,7 @@ class Detector(Stoppable):
     def trigger(self, point: int = -1) -> None:
         """An External trigger (the trajectory reaching ``point``): one frame,
         if acquiring in External mode; dropped otherwise, as hardware does."""
-        if not self._taking or self._stop:
+        if not self._taking or self.stopping(self.acquire):
             return
         total = self._external_total
         if total is not None and self._made >= total:

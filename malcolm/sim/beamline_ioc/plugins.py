@@ -26,9 +26,11 @@ until it is done (docs/ca.md), so each has a ``Stop`` record a client can
 put with completion to end it now.
 
 The per-frame counters (``Qty``, ``Index``, ``NumCaptured_RBV``) are posted
-at most every :data:`~.pace.STATUS_PERIOD` (:mod:`.pace`), as a real
-plugin's are by its driver's callbacks, and always before the busy put that
-they count ends (and at once after a ``Delete`` or a load of positions).
+at most every :data:`~.pace.STATUS_PERIOD` (:mod:`.pace`), as a status
+poll would show them (areaDetector posts them per frame, and Channel Access
+merges a subscription's updates when its client falls behind), and always
+before the busy put that they count ends (and at once after a ``Delete`` or
+a load of positions).
 """
 
 from __future__ import annotations
