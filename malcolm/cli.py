@@ -306,7 +306,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_beamline(commands)  # malcolm beamline (docs/beamline.md)
 
-    from malcolm.io.pva.client_cli import add_parsers as add_pva_client
+    from malcolm.cli_pva import add_parsers as add_pva_client
 
     add_pva_client(commands)  # get, put, call, ls (docs/pva-client.md)
 

@@ -155,9 +155,8 @@ async def serve_demo(
 
     for sig in signals:
         loop.add_signal_handler(sig, on_signal, sig)
-    pva = None
+    pva = box = web = process = None
     try:
-        box = None
         with long_lived() if freeze else contextlib.nullcontext():
             process = demo_process()
             if pva_port:
@@ -178,21 +177,23 @@ async def serve_demo(
         from malcolm.io.web.cli import start_if_asked
 
         web = await start_if_asked(process, web_port, "malcolm demo", out, err)
+        if pva is not None:
+            out.write(f"malcolm demo: pvAccess on {pva.address}\n")
+        status = await _demo(process, scan, generator, stop, received, out, err)
+    finally:
+        # whatever was started is let go of, also when starting failed
         try:
-            if pva is not None:
-                out.write(f"malcolm demo: pvAccess on {pva.address}\n")
-            status = await _demo(process, scan, generator, stop, received, out, err)
-        finally:
             if web is not None:
                 await web.close()
             if pva is not None:
                 await pva.close()
-            await process.stop()
+            if process is not None:
+                await process.stop()
             if box is not None:
                 await box.close()
-    finally:
-        for sig in signals:
-            loop.remove_signal_handler(sig)
+        finally:
+            for sig in signals:
+                loop.remove_signal_handler(sig)
     if received:
         err.write(f"malcolm demo: {signal.Signals(received[0]).name}: stopped\n")
     return status

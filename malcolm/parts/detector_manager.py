@@ -50,8 +50,12 @@ __all__ = ["DetectorManagerPart"]
 
 #: trigger modes of the driver
 TRIGGER_MODES = ("Internal", "External")
-#: the shortest frame the simulated driver makes, in seconds
-MIN_EXPOSURE = 0.0005
+#: the shortest frame period (s) the detector sustains, its readout time:
+#: validate raises a scan's shorter duration to it. The simulated IOC's
+#: (``malcolm.sim.beamline_ioc.pace.MIN_PERIOD``) with malcolm following
+#: it: it keeps pace at 0.05 ms a point and falls behind at 0.02 ms on this
+#: 2-core machine; 0.1 ms leaves room for a loaded one (docs/devices.md)
+MIN_EXPOSURE = 0.0001
 #: positions per XML put: a char waveform of 65536 bytes holds 2500 of 8 digits
 XML_BATCH = 2500
 #: seconds to wait for a child to show it is armed or stopped
@@ -204,7 +208,33 @@ class DetectorManagerPart(Part):
                     f"{self._mri}.configure: Internal triggering needs the"
                     " scan's duration or an exposure"
                 )
-        return {}
+        return self._at_least_readout(device)
+
+    def _at_least_readout(self, device: Any) -> dict[str, Any]:
+        """The scan's duration (and ``exposure``) raised to
+        :data:`MIN_EXPOSURE`, as a detector's readout time does: a
+        CompoundGenerator structure comes back with its ``duration`` raised;
+        another scan whose points are shorter is refused, naming the
+        minimum."""
+        tweaks: dict[str, Any] = {}
+        exposure = float(device.params.get("exposure") or 0.0)
+        if 0 < exposure < MIN_EXPOSURE:
+            tweaks["exposure"] = MIN_EXPOSURE
+        generator = device.params.get("generator")
+        if isinstance(generator, dict) and "generators" in generator:
+            if 0 < float(generator.get("duration", -1)) < MIN_EXPOSURE:
+                tweaks["generator"] = {**generator, "duration": MIN_EXPOSURE}
+            return tweaks
+        points = device.points
+        if points is None or not points.has_duration or not points.size:
+            return tweaks
+        shortest = float(points.duration.min())
+        if shortest >= MIN_EXPOSURE:
+            return tweaks
+        raise BadValueError(
+            f"{self._mri}.configure.generator: a point of {shortest:g} s is"
+            f" shorter than the detector's shortest frame, {MIN_EXPOSURE:g} s"
+        )
 
     # ---- configure
     @RunnableDevice.Configure

@@ -28,7 +28,7 @@ import sys
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["BLOCK_LIST_MRI", "add_parsers"]
+__all__ = ["BLOCK_LIST_MRI", "DEFAULT_ADDRESS", "run_command"]
 
 DEFAULT_ADDRESS = "127.0.0.1:5075"
 #: the mri of the block whose ``blocks`` attribute lists a server's blocks
@@ -39,64 +39,11 @@ class CliError(Exception):
     """A failure to report as one line."""
 
 
-def add_parsers(commands: Any) -> None:
-    """Add ``get``, ``put``, ``call`` and ``ls`` to the ``malcolm`` parser."""
-
-    def common(p: argparse.ArgumentParser) -> None:
-        p.add_argument(
-            "--address",
-            default=DEFAULT_ADDRESS,
-            metavar="HOST:PORT",
-            help=f"the pvAccess server (default {DEFAULT_ADDRESS})",
-        )
-        p.add_argument("--json", action="store_true", help="print JSON")
-        p.add_argument(
-            "--timeout",
-            type=float,
-            default=5.0,
-            metavar="SECONDS",
-            help="give up after this long (default 5; a call: 0 waits for ever)",
-        )
-
-    get = commands.add_parser(
-        "get",
-        help="print a block or one field of it, over pvAccess",
-        description="Print block MRI (every field), or its FIELD.",
-    )
-    get.add_argument("path", metavar="MRI[.FIELD]")
-    common(get)
-    get.set_defaults(func=lambda a: _run("get", _get, a))
-
-    put = commands.add_parser(
-        "put",
-        help="put a value to a field, over pvAccess",
-        description="Put VALUE (JSON, or text) to MRI.FIELD; print it after.",
-    )
-    put.add_argument("path", metavar="MRI.FIELD")
-    put.add_argument("value", metavar="VALUE")
-    common(put)
-    put.set_defaults(func=lambda a: _run("put", _put, a))
-
-    call = commands.add_parser(
-        "call",
-        help="call a method, over pvAccess",
-        description=(
-            "Call MRI.METHOD with arguments key=value (each value JSON, or "
-            "text); print what it returns."
-        ),
-    )
-    call.add_argument("path", metavar="MRI.METHOD")
-    call.add_argument("args", metavar="KEY=VALUE", nargs="*")
-    common(call)
-    call.set_defaults(func=lambda a: _run("call", _call, a))
-
-    ls = commands.add_parser(
-        "ls",
-        help="list the blocks a pvAccess server offers",
-        description=f"Print the blocks of the server ({BLOCK_LIST_MRI}.blocks).",
-    )
-    common(ls)
-    ls.set_defaults(func=lambda a: _run("ls", _ls, a))
+def run_command(name: str, args: argparse.Namespace) -> int:
+    """Run ``malcolm NAME`` (get, put, call or ls) with its parsed ``args``
+    (the parsers are :func:`malcolm.cli_pva.add_parsers`); the exit status."""
+    commands = {"get": _get, "put": _put, "call": _call, "ls": _ls}
+    return _run(name, commands[name], args)
 
 
 def _run(name: str, command: Any, args: argparse.Namespace) -> int:

@@ -36,6 +36,8 @@ class Session:
         self.process = process
         self.send = send
         self.subs: dict[int, Subscription | None] = {}
+        # subscriptions under "." watch the process's blocks come and go
+        self.watches: dict[int, Callable[[], None]] = {}
         self.tasks: set[asyncio.Task[None]] = set()
         self.closed = False
 
@@ -96,12 +98,7 @@ class Session:
             self.send(p.error(id_, f"BadValueError: subscription id {id_} is in use"))
             return
         if request.path[0] == ".":
-            # served data that does not change while served: one reply
-            value = directory_get(self.process, request.path)
-            self.subs[id_] = None
-            self.send(
-                p.delta(id_, [[[], value]]) if request.delta else p.update(id_, value)
-            )
+            self._subscribe_directory(request)
             return
 
         def on_change(payload: Any) -> None:
@@ -119,6 +116,43 @@ class Session:
             del self.subs[id_]
             raise
 
+    def _subscribe_directory(self, request: p.Request) -> None:
+        """A path under ``"."``: its value now, and again whenever a block is
+        added or removed (the block list changes; a model of a block that
+        goes away ends as NotFound), only when it differs from the last."""
+        id_ = request.id
+        path = list(request.path)
+        value = directory_get(self.process, path)  # NotFoundError: refused
+        last = [value]
+
+        def send(new: Any) -> None:
+            self.send(
+                p.delta(id_, [[[], new]]) if request.delta else p.update(id_, new)
+            )
+
+        def on_hosting() -> None:
+            if self.closed or id_ not in self.subs:
+                return
+            try:
+                new = directory_get(self.process, path)
+            except MalcolmError as e:
+                self._end_watch(id_)
+                self.send(p.error(id_, p.error_text(e)))
+                return
+            if new != last[0]:
+                last[0] = new
+                send(new)
+
+        self.subs[id_] = None
+        self.watches[id_] = self.process.watch_hosting(on_hosting)
+        send(value)
+
+    def _end_watch(self, id_: int) -> None:
+        self.subs.pop(id_, None)
+        unwatch = self.watches.pop(id_, None)
+        if unwatch is not None:
+            unwatch()
+
     def _unsubscribe(self, id_: int) -> None:
         if id_ not in self.subs:
             self.send(p.error(id_, f"NotFoundError: no subscription with id {id_}"))
@@ -126,6 +160,7 @@ class Session:
         sub = self.subs.pop(id_)
         if sub is not None:
             self.process.unsubscribe(sub)
+        self._end_watch(id_)
         self.send(p.return_(id_))
 
     async def close(self) -> None:
@@ -135,5 +170,8 @@ class Session:
             if sub is not None:
                 self.process.unsubscribe(sub)
         self.subs.clear()
+        for unwatch in self.watches.values():
+            unwatch()
+        self.watches.clear()
         if self.tasks:
             await asyncio.gather(*self.tasks, return_exceptions=True)

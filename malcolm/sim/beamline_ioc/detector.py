@@ -15,6 +15,15 @@ Every frame the driver makes goes to the plugins whose callbacks are
 enabled: the position plugin tags it with the next position (and its
 uniqueId), the writer appends it (and its position) to the file with h5py.
 A frame's pixels all hold its uniqueId (modulo 65536).
+
+Frames come on an absolute schedule: in Internal mode frame k is due at
+the acquisition's start plus k periods (a late frame is made at once, so
+lateness does not add up); in External mode a frame is made when its
+trigger comes (the trajectory's schedule). The period is at least
+:data:`~.pace.MIN_PERIOD`, the shortest this simulation sustains (:mod:`.pace`).
+The counters (``ArrayCounter_RBV``, ``NumImagesCounter_RBV``) are posted at
+most every :data:`~.pace.STATUS_PERIOD` (:mod:`.pace`), and always
+before the ``Acquire`` put completes.
 """
 
 from __future__ import annotations
@@ -25,6 +34,7 @@ from typing import Any
 import numpy as np
 from softioc import builder
 
+from .pace import LATE_SLICE, MIN_PERIOD, Throttled
 from .plugins import (
     TEXT,
     HDFWriter,
@@ -36,6 +46,7 @@ from .plugins import (
 )
 
 __all__ = [
+    "MIN_PERIOD",
     "Detector",
     "HDFWriter",
     "PositionPlugin",
@@ -65,10 +76,17 @@ class Detector(Stoppable):
         )
         self.mode = self._choice("ImageMode", "Single", "Multiple", "Continuous")
         self.trigger_mode = self._choice("TriggerMode", "Internal", "External")
-        self.counter, self.counter_rbv = demand(
-            "ArrayCounter", builder.longOut, builder.longIn, 0
+        self.counter_rbv = Throttled(
+            builder.longIn("ArrayCounter_RBV", initial_value=0)
         )
-        self.images = builder.longIn("NumImagesCounter_RBV", initial_value=0)
+        self.counter = builder.longOut(
+            "ArrayCounter",
+            initial_value=0,
+            always_update=True,
+            blocking=True,
+            on_update=self._put_counter,
+        )
+        self.images = Throttled(builder.longIn("NumImagesCounter_RBV", initial_value=0))
         self.callbacks, _ = enable("ArrayCallbacks", 1)
         builder.stringIn("Manufacturer_RBV", initial_value="Simulated Detector")
         self.state = builder.mbbIn(
@@ -87,11 +105,23 @@ class Detector(Stoppable):
             blocking=True,
             always_update=True,
         )
-        self.triggers = 0  # External triggers not yet made into frames
         self.triggered = asyncio.Event()
+        #: frames wanted of the External acquisition in progress (None: no
+        #: limit), frames made so far, and whether one is in progress
+        self._external_total: int | None = None
+        self._made = 0
+        self._taking = False
+
+    def _put_counter(self, value: int) -> None:
+        self.counter_rbv.set(value)
+        self.counter_rbv.flush()
 
     def wake(self) -> None:
         self.triggered.set()
+
+    def _counters_done(self) -> None:
+        self.counter_rbv.flush()
+        self.images.flush()
 
     @staticmethod
     def _choice(name: str, *labels: str) -> Any:
@@ -108,9 +138,15 @@ class Detector(Stoppable):
     def trigger(self, point: int = -1) -> None:
         """An External trigger (the trajectory reaching ``point``): one frame,
         if acquiring in External mode; dropped otherwise, as hardware does."""
-        if self.acquire_rbv.get() and self.trigger_mode.get() == 1:
-            self.triggers += 1
-            self.triggered.set()
+        if not self._taking or self.stopping(self.acquire):
+            return
+        total = self._external_total
+        if total is not None and self._made >= total:
+            return
+        self._made += 1
+        self._frame(self._made)
+        if total is not None and self._made >= total:
+            self.triggered.set()  # the acquisition is complete
 
     async def _acquire(self, value: int) -> None:
         if not value:
@@ -119,45 +155,52 @@ class Detector(Stoppable):
         mode = self.mode.get()
         total = 1 if mode == 0 else self.num_images.get() if mode == 1 else None
         external = self.trigger_mode.get() == 1
-        self.triggers = 0
         self.triggered.clear()
+        self.images.set(0)
+        self.images.flush()  # reset before the acquisition shows
         self.acquire_rbv.set(1)
         self.state.set(1)
-        self.images.set(0)
         try:
             if external:
                 await self._external(total)
             else:
                 await self._internal(total)
         finally:
+            self._taking = False
+            self._counters_done()
             self.state.set(0)
             self.acquire_rbv.set(0)
 
     async def _internal(self, total: int | None) -> None:
         loop = asyncio.get_running_loop()
-        deadline = loop.time()
+        deadline = yielded = loop.time()
         made = 0
         while total is None or made < total:
-            deadline += max(self.exposure.get(), self.period.get(), 0.0005)
-            await asyncio.sleep(max(0.0, deadline - loop.time()))
+            deadline += max(self.exposure.get(), self.period.get(), MIN_PERIOD)
+            now = loop.time()
+            if deadline > now:
+                await asyncio.sleep(deadline - now)
+                yielded = loop.time()
+            elif now - yielded > LATE_SLICE:  # catching up: let others run
+                await asyncio.sleep(0)
+                yielded = loop.time()
             if self.stopping(self.acquire):
                 break
             made += 1
             self._frame(made)
 
     async def _external(self, total: int | None) -> None:
-        made = 0
-        while (total is None or made < total) and not self.stopping(self.acquire):
-            if not self.triggers:
-                self.triggered.clear()
-                try:
-                    await asyncio.wait_for(self.triggered.wait(), 0.05)
-                except TimeoutError:
-                    pass
-                continue
-            self.triggers -= 1
-            made += 1
-            self._frame(made)
+        """Frames are made by :meth:`trigger` as the triggers come; this
+        waits for the last (or a stop)."""
+        self._external_total = total
+        self._made = 0
+        self._taking = True
+        while (total is None or self._made < total) and not self.stopping(self.acquire):
+            self.triggered.clear()
+            try:
+                await asyncio.wait_for(self.triggered.wait(), 0.05)
+            except TimeoutError:
+                pass
 
     def _frame(self, made: int) -> None:
         count = self.counter_rbv.get() + 1

@@ -40,6 +40,13 @@ there, ``PointsScanned_RBV`` counts it, and :attr:`Trajectory.point_listeners`
 are called with its ``PointIndices`` entry (if not -1): a detector in
 External mode takes one frame per call, as a controller's position compare
 would trigger it.
+
+An execution keeps an absolute schedule: profile point k is due at the
+execution's start plus the times up to k, so a late point is done at once
+and lateness does not add up. ``PointsScanned_RBV`` and the motors' ``RBV``
+are posted at most every :data:`~.pace.STATUS_PERIOD` while it runs (as a
+controller's status poll shows its progress; :mod:`.pace`), and their
+final values before ``ReadbacksA``/``B`` and ``ExecuteState_RBV``.
 """
 
 from __future__ import annotations
@@ -51,6 +58,7 @@ from collections.abc import Callable
 import numpy as np
 from softioc import builder
 
+from .pace import LATE_SLICE, Throttled
 from .trapezoid import move_time, moved_by
 
 TICK = 0.01  # seconds between position updates of a move
@@ -178,7 +186,7 @@ class Trajectory:
         self.exec_state = builder.mbbIn(
             "ExecuteState_RBV", "Done", "Executing", initial_value=0
         )
-        self.scanned = builder.longIn("PointsScanned_RBV", initial_value=0)
+        self.scanned = Throttled(builder.longIn("PointsScanned_RBV", initial_value=0))
         self.readbacks = {
             axis: builder.WaveformIn(f"Readbacks{axis}", zeros, EGU="mm", PREC=3)
             for axis in axes
@@ -253,31 +261,47 @@ class Trajectory:
             return
         positions, times, indices = self.built
         self.aborted = False
+        self.scanned.set(0)
+        self.scanned.flush()  # reset before the execution shows
         self.exec_status.set(0)
         self.exec_state.set(1)
-        self.scanned.set(0)
+        # the motors' readbacks, posted at the status rate while it runs
+        placed = {axis: Throttled(motor.rbv) for axis, motor in self.axes.items()}
+        where = {axis: positions[axis].tolist() for axis in self.axes}
+        due = np.cumsum(times, dtype=np.int64).tolist()  # us from the start
+        points = indices.tolist()
+        listeners = self.point_listeners
         loop = asyncio.get_running_loop()
-        deadline = loop.time()
-        readbacks = {axis: np.full(len(times), np.nan) for axis in self.axes}
+        start = loop.time()
+        yielded = start
         reached = 0
         try:
-            for i, us in enumerate(times):
-                deadline += us / 1e6
-                await asyncio.sleep(max(0.0, deadline - loop.time()))
+            for i, at in enumerate(due):
+                deadline = start + at / 1e6
+                now = loop.time()
+                if deadline > now:
+                    await asyncio.sleep(deadline - now)
+                    yielded = loop.time()
+                elif now - yielded > LATE_SLICE:  # catching up: let others run
+                    await asyncio.sleep(0)
+                    yielded = loop.time()
                 if self.aborted:
                     self.exec_status.set(2)
                     return
-                for axis, motor in self.axes.items():
-                    motor.place(float(positions[axis][i]))
-                    readbacks[axis][i] = motor.rbv.get()
+                for axis, record in placed.items():
+                    record.set(where[axis][i])
                 reached = i + 1
                 self.scanned.set(reached)
-                index = int(indices[i])
+                index = points[i]
                 if index >= 0:
-                    for listener in self.point_listeners:
+                    for listener in listeners:
                         listener(index)
             self.exec_status.set(1)
         finally:
+            for record in placed.values():
+                record.flush()
+            self.scanned.flush()
             for axis, record in self.readbacks.items():
-                record.set(readbacks[axis][:reached])
+                # the motor was placed exactly at each point it reached
+                record.set(np.asarray(positions[axis][:reached], dtype=float))
             self.exec_state.set(0)

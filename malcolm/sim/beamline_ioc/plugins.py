@@ -24,6 +24,13 @@ PVs (``P`` the IOC's prefix):
 A busy record's put (``Running``, ``Capture``) holds a put-with-callback of 0
 until it is done (docs/ca.md), so each has a ``Stop`` record a client can
 put with completion to end it now.
+
+The per-frame counters (``Qty``, ``Index``, ``NumCaptured_RBV``) are posted
+at most every :data:`~.pace.STATUS_PERIOD` (:mod:`.pace`), as a status
+poll would show them (areaDetector posts them per frame, and Channel Access
+merges a subscription's updates when its client falls behind), and always
+before the busy put that they count ends (and at once after a ``Delete`` or
+a load of positions).
 """
 
 from __future__ import annotations
@@ -35,6 +42,8 @@ from typing import Any
 
 import numpy as np
 from softioc import builder
+
+from .pace import Throttled
 
 TEXT = 65536  # bytes of a char waveform
 FLUSH_ROWS = 200  # frames the writer keeps before writing them
@@ -112,8 +121,8 @@ class PositionPlugin(Stoppable):
         builder.SetDeviceName(f"{prefix}:POS")
         super().__init__()
         self.buffer: deque[dict[str, str]] = deque()
-        self.qty = builder.longIn("Qty", initial_value=0)
-        self.index = builder.longIn("Index", initial_value=0)
+        self.qty = Throttled(builder.longIn("Qty", initial_value=0))
+        self.index = Throttled(builder.longIn("Index", initial_value=0))
         self.id_start, _ = demand("IDStart", builder.longOut, builder.longIn, 1)
         self.callbacks, self.callbacks_rbv = enable("EnableCallbacks")
         self.delete = builder.boolOut(
@@ -152,16 +161,20 @@ class PositionPlugin(Stoppable):
             self.buffer.clear()
             self.qty.set(0)
             self.index.set(0)
+            self.qty.flush()
+            self.index.flush()
 
     def _load(self, text: str) -> None:
         try:
             root = ET.fromstring(text)
         except ET.ParseError:
-            self.qty.set(len(self.buffer), severity=2, alarm=7)  # MAJOR, STATE
+            self.qty.set(len(self.buffer))
+            self.qty.flush(severity=2, alarm=7)  # MAJOR, STATE
             return
         for position in root.iter("position"):
             self.buffer.append(dict(position.attrib))
         self.qty.set(len(self.buffer))
+        self.qty.flush(severity=0, alarm=0)  # posted now, any alarm cleared
 
     async def _run(self, value: int) -> None:
         if not value:
@@ -176,6 +189,8 @@ class PositionPlugin(Stoppable):
                 except TimeoutError:
                     pass
         finally:
+            self.qty.flush()
+            self.index.flush()
             self.running_rbv.set(0)
 
     def tag(self) -> tuple[int, dict[str, str]] | None:
@@ -210,7 +225,9 @@ class HDFWriter(Stoppable):
         )
         self.full_name = builder.longStringIn("FullFileName_RBV", length=1024)
         self.num_capture, _ = demand("NumCapture", builder.longOut, builder.longIn, 1)
-        self.num_captured = builder.longIn("NumCaptured_RBV", initial_value=0)
+        self.num_captured = Throttled(
+            builder.longIn("NumCaptured_RBV", initial_value=0)
+        )
         self.status = builder.mbbIn(
             "WriteStatus", "Write OK", "Write error", initial_value=0
         )
@@ -273,6 +290,7 @@ class HDFWriter(Stoppable):
         if not self.lazy.get() and not self._open():
             return
         self.num_captured.set(0)
+        self.num_captured.flush()
         self.rows = []
         self.capturing = True
         self.capture_rbv.set(1)
@@ -289,6 +307,7 @@ class HDFWriter(Stoppable):
             file, self.file = self.file, None
             if file is not None:
                 file.close()
+            self.num_captured.flush()
             self.capture_rbv.set(0)
 
     def write(self, frame: np.ndarray, uid: int, position: dict | None) -> None:

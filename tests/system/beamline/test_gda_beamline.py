@@ -261,3 +261,19 @@ def test_stopping_leaves_no_simulator_running(tmp_path):
     assert served.proc.returncode == 0, out
     assert "malcolm beamline: stopped" in out
     assert not any(alive(p) for p in pids.values()), out
+
+
+def test_validate_gives_back_the_detectors_shortest_frame(ctx):
+    """A duration the simulated detector cannot keep pace with comes back
+    from the beamline's validate raised to its shortest frame."""
+    from malcolm.parts.detector_manager import MIN_EXPOSURE
+
+    ready(ctx)
+    before = state(ctx)  # Ready, or Finished after another test's scan
+    # points 0.001 mm apart: slow enough for the motors at either duration
+    # (the children validate at once: the motion checks the duration given)
+    short = compound(line("y", 2, 0.0, 0.001, False), line("x", 3, 0.0, 0.002, True))
+    short["duration"] = MIN_EXPOSURE / 10
+    validated = call(ctx, "validate", scan_args(short, ["x", "y"], "short"))
+    assert to_dict(validated["generator"])["duration"] == pytest.approx(MIN_EXPOSURE)
+    assert state(ctx) == before  # validate changed nothing

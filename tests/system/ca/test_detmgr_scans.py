@@ -305,3 +305,43 @@ def test_no_file_dir_runs_without_a_file_and_disable_stops_the_hardware(ioc):
             await process.stop()
 
     run(scenario())
+
+
+def test_validate_raises_a_duration_under_the_detectors_shortest_frame(ioc):
+    """As a detector's readout time: the simulation cannot keep pace below
+    MIN_EXPOSURE (malcolm.sim.beamline_ioc.pace), so validate gives it back."""
+    from scanspec.specs import ConstantDuration, Line
+
+    from malcolm.core import MalcolmError
+    from malcolm.parts.detector_manager import MIN_EXPOSURE
+
+    process = make_manager("External", "DRV")
+
+    async def scenario():
+        det = await started(process)
+        try:
+            short = line(5, MIN_EXPOSURE / 10)
+            validated = await process.post(["DET", "validate"], {"generator": short})
+            assert validated["generator"]["duration"] == MIN_EXPOSURE
+            assert validated["generator"]["generators"] == short["generators"]
+            # long enough: given back as it was; an exposure too short raised
+            fine = line(5, 0.002)
+            validated = await process.post(
+                ["DET", "validate"], {"generator": fine, "exposure": 1e-6}
+            )
+            assert validated["generator"] == fine
+            assert validated["exposure"] == MIN_EXPOSURE
+            assert det.state.value == "Ready"  # validate changed nothing
+            # a scanspec Spec cannot be given back changed: refused, naming why
+            spec = ConstantDuration(MIN_EXPOSURE / 10, Line("x", 0, 1, 5))
+            with pytest.raises(MalcolmError, match="shortest frame, 0.0001 s"):
+                await process.post(["DET", "validate"], {"generator": spec})
+            # configure takes the validated duration: the driver's exposure
+            await process.post(["DET", "configure"], {"generator": short})
+            drv = process.get_block("DET:DRV")
+            assert drv.exposure.value == pytest.approx(MIN_EXPOSURE)
+            await process.post(["DET", "abort"])
+        finally:
+            await process.stop()
+
+    run(scenario())

@@ -57,6 +57,22 @@ def test_block_list_and_a_put_both_ways(page):
     page.shots(page, "counter")
 
 
+def test_the_block_list_shows_blocks_added_and_removed_while_open(page):
+    from .test_web_protocol import _add_counter, _remove
+
+    page.goto(page.served.url)
+    late = page.locator('#blocks li[data-mri="LATE"]')
+    expect(page.locator('#blocks li[data-mri="COUNTER"]')).to_have_count(1)
+    expect(late).to_have_count(0)
+    _add_counter(page.served, "LATE")
+    expect(late.locator(".state")).to_have_text("Ready")
+    late.locator("a").click()
+    expect(page.locator('[data-view="LATE"] .badge')).to_have_text("Ready")
+    _remove(page.served, "LATE")
+    expect(late).to_have_count(0)
+    expect(page.locator('#blocks li[data-mri="COUNTER"]')).to_have_count(1)
+
+
 def test_method_result_and_error_are_shown(page):
     open_block(page, "HELLO")
     page.locator('[data-name="greet.name"]').fill("browser")

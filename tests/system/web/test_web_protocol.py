@@ -361,3 +361,66 @@ def test_a_client_that_does_not_read_is_dropped_and_others_go_on(served, monkeyp
             assert stuck.ws.close_code == 1008
 
     run(body())
+
+
+def _add_counter(served, mri: str) -> None:
+    from malcolm.controllers.stateful import StatefulController
+    from malcolm.parts.demo import CounterPart
+
+    controller = StatefulController(mri, [CounterPart("counter")])
+
+    async def add() -> None:
+        served.process.add_controller(controller)
+        await controller.start()
+
+    served.call(add)
+
+
+def _remove(served, mri: str) -> None:
+    async def remove() -> None:
+        await served.process.get_controller(mri).stop()
+        served.process.remove_controller(mri)
+
+    served.call(remove)
+
+
+def test_the_block_list_follows_blocks_added_and_removed(served):
+    async def body():
+        async with aiohttp.ClientSession() as s:
+            c = await connect(s, served)
+            await c.send({"typeid": SUBSCRIBE, "id": 3, "path": [".", "blocks"]})
+            first = (await c.wait_for(3, (UPDATE,)))["value"]
+            assert first["value"] == served.call(lambda: served.process.mris)
+            await c.send(
+                {
+                    "typeid": SUBSCRIBE,
+                    "id": 4,
+                    "path": [".", "blocks", "value"],
+                    "delta": True,
+                }
+            )
+            assert "LATE" not in (await c.wait_for(4, (DELTA,)))["changes"][0][1]
+            _add_counter(served, "LATE")
+            assert (await c.wait_for(3, (UPDATE,)))["value"]["value"][-1] == "LATE"
+            changes = (await c.wait_for(4, (DELTA,)))["changes"]
+            assert changes == [[[], served.call(lambda: served.process.mris)]]
+            # the model of a block added late is served too
+            model = await c.value(GET, path=[".", "models", "LATE"])
+            assert model["typeid"] == "malcolm:fsm/Model:1.0"
+            await c.value(UNSUBSCRIBE, id=4)
+            await c.send(
+                {"typeid": SUBSCRIBE, "id": 6, "path": [".", "models", "LATE"]}
+            )
+            assert (await c.wait_for(6, (UPDATE,)))["value"] == model
+            _remove(served, "LATE")
+            ended = await c.wait_for(6, (ERROR,))
+            assert ended["message"].startswith("NotFoundError: ")
+            assert "LATE" in ended["message"]
+            gone = (await c.wait_for(3, (UPDATE,)))["value"]["value"]
+            assert "LATE" not in gone and "COUNTER" in gone
+            # a round trip after the removal: anything sent for id 4 is kept
+            assert await c.value(GET, path=["COUNTER", "counter", "value"]) == 0
+            # nothing for the ended subscription
+            assert [m for m in c.take(4) if m.get("typeid") == DELTA] == []
+
+    run(body())

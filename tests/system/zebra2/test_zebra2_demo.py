@@ -30,3 +30,27 @@ def test_the_demo_has_no_zebra2_unless_asked():
     generator = demo_generator(duration=0.001)
     asyncio.run(serve_demo(True, out=out, signals=(), generator=generator))
     assert "ZEBRA2" not in out.getvalue()
+
+
+def test_a_failed_start_lets_go_of_the_pvaccess_port(monkeypatch):
+    """The box failing to start (injected) after pvAccess is serving: the
+    demo's error reaches the caller and the port is free again."""
+    import socket
+
+    import pytest
+
+    from malcolm.parts import zebra2_demo
+
+    async def broken(process):
+        raise OSError("no box today")
+
+    monkeypatch.setattr(zebra2_demo, "start_demo_zebra2", broken)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    with pytest.raises(OSError, match="no box today"):
+        asyncio.run(
+            serve_demo(True, out=io.StringIO(), signals=(), pva_port=port, zebra2=True)
+        )
+    with socket.socket() as s:  # refused while a server still holds it
+        s.bind(("127.0.0.1", port))

@@ -16,19 +16,29 @@ client.onstatus = (s) => { conn.textContent = s; conn.className = s; };
 
 // ---- the block list: state and health, live
 const rows = new Map();
+// (the server sends the list again whenever a block is added or removed)
 client.subscribe([".", "blocks", "value"], (mris) => {
+  const served = new Set(mris || []);
+  for (const [mri, entry] of rows) {
+    if (served.has(mri)) continue;
+    for (const sub of entry.subs) client.unsubscribe(sub);
+    entry.row.remove();
+    rows.delete(mri);
+  }
   for (const mri of mris || []) {
     if (rows.has(mri)) continue;
     const state = h("span", { class: "state" });
     const health = h("span", { class: "health" });
     const row = h("li", { "data-mri": mri }, h("a", { href: `#/block/${encodeURIComponent(mri)}` }, mri), state, health);
-    rows.set(mri, row);
     list.append(row);
-    client.subscribe([mri, "state", "value"], (v) => { state.textContent = v ?? ""; row.dataset.state = v; }, false);
-    client.subscribe([mri, "health", "value"], (v) => {
-      health.textContent = v === "OK" ? "" : v ?? "";
-      row.classList.toggle("unhealthy", !!v && v !== "OK");
-    }, false);
+    const subs = [
+      client.subscribe([mri, "state", "value"], (v) => { state.textContent = v ?? ""; row.dataset.state = v; }, false),
+      client.subscribe([mri, "health", "value"], (v) => {
+        health.textContent = v === "OK" ? "" : v ?? "";
+        row.classList.toggle("unhealthy", !!v && v !== "OK");
+      }, false),
+    ];
+    rows.set(mri, { row, subs });
   }
   if (!location.hash && mris?.length) location.hash = `#/block/${encodeURIComponent(mris[0])}`;
   else if (!current) route();
@@ -158,7 +168,7 @@ function route() {
   current?.close();
   current = new BlockView(mri);
   main.replaceChildren(current.el);
-  for (const [name, row] of rows) row.classList.toggle("selected", name === mri);
+  for (const [name, { row }] of rows) row.classList.toggle("selected", name === mri);
   document.title = `${mri} · malcolm`;
 }
 
