@@ -100,18 +100,28 @@ class DeviceChildPart(RunnableChildPart):
         self._block = registrar.controller.block
 
     # ---- what the child is given
-    def child_takes(self) -> set[str]:
-        """The arguments the child's configure() takes (none if unknown)."""
+    def _child_method(self, method: str) -> Any:
+        """The child block's method ``method`` itself (LookupError if none):
+        read in place, not copied out as data (``Process.get`` of a method
+        serializes it, its last call's arguments included)."""
         controller = self._controller
         assert controller is not None and controller.process is not None
+        return controller.process.get_block(self.mri)[method]
+
+    def child_takes(self) -> set[str]:
+        """The arguments the child's configure() takes (none if unknown)."""
         try:
-            takes = controller.process.get([self.mri, "configure", "meta", "takes"])
-        except LookupError:
+            takes = self._child_method("configure").meta.takes
+        except (LookupError, AttributeError):
             return set()
-        elements = getattr(takes, "elements", None)
-        if elements is None and isinstance(takes, dict):
-            elements = takes.get("elements", {})
-        return set(elements or ())
+        return set(getattr(takes, "elements", None) or ())
+
+    def allowed(self, task: Task, method: str) -> bool:
+        """Whether the child's ``method`` may be called now (read in place)."""
+        try:
+            return bool(self._child_method(method).meta.writeable)
+        except (LookupError, AttributeError):
+            return False
 
     def raw_name(self, device: Any) -> str:
         """The child's ``formatName``: the scan's, then the part's name."""

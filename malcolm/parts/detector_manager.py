@@ -27,6 +27,7 @@ the positions it has used since it was cleared).
 from __future__ import annotations
 
 import asyncio
+import functools
 import os
 from typing import Any
 
@@ -62,6 +63,11 @@ SETTLE_TIMEOUT = 10.0
 #: HDF5 paths the writer uses
 DATA_PATH = "/entry/data"
 UID_PATH = "/entry/uid"
+
+
+#: the XML of the last few batches (a scan configured again, or another of
+#: the same size, loads the same batches: 65 kB of text each)
+_batch_xml = functools.lru_cache(maxsize=8)(positions_xml)
 
 
 class DetectorManagerPart(Part):
@@ -309,11 +315,18 @@ class DetectorManagerPart(Part):
 
     # ---- arming and stopping
     async def _load(self, task: Task, upto: int) -> None:
-        """Load positions ``self._loaded .. upto-1`` into the plugin."""
+        """Load positions ``self._loaded .. upto-1`` into the plugin,
+        ``XML_BATCH`` a put. The puts are all sent at once, in order: Channel
+        Access delivers one client's puts to a record in the order sent and
+        the record takes each after the last (a busy record queues the next
+        put), so the plugin appends them in order while the next are on
+        their way; each is still checked."""
+        puts = []
         while self._loaded < upto:
             start = self._loaded
             self._loaded = stop = min(upto, start + XML_BATCH)  # taken now
-            await task.put(self.pos.xml, positions_xml(start, stop))
+            puts.append(task.put_async(self.pos.xml, _batch_xml(start, stop)))
+        await task.wait_all(puts)
 
     async def _arm(
         self,
@@ -346,9 +359,15 @@ class DetectorManagerPart(Part):
             puts.update(
                 {hdf.numCapture: frames, hdf.append: not fresh, hdf.lazyOpen: not fresh}
             )
-        await task.put({pos.delete: True, **self._changed(puts)})
+        # the settings go while the plugin is cleared and loaded (the
+        # positions wait for the clear)
+        # (a failure of the clear or the load is raised: the settings' own
+        # puts end by themselves, their errors retrieved by the task)
+        settings = task.put_async(self._changed(puts))
+        await task.put(pos.delete, True)
         self._loaded = start
         await self._load(task, min(end, start + self.preload))
+        await task.wait_all(settings)
         waits = [task.when_matches(pos.running, True, timeout=SETTLE_TIMEOUT)]
         self._busy["plugin"] = task.put_async(pos.start, True)
         if self._file:

@@ -26,7 +26,7 @@ from __future__ import annotations
 import asyncio
 from typing import TYPE_CHECKING, Any
 
-from malcolm.core import BadValueError, MalcolmError, StringMeta
+from malcolm.core import AlarmSeverity, BadValueError, MalcolmError, StringMeta
 from malcolm.fsm import RunnableDevice
 from malcolm.io.channel import ChannelError
 
@@ -52,6 +52,10 @@ LAST_EVENT_WAIT = 5.0
 PROGRESS_PERIOD = 0.01
 #: steps of the scan checked at a time in validate
 CHECK_CHUNK = 65536
+#: a scan (or run) of at most this many steps is checked, and its profile
+#: computed, on the loop (well under a millisecond: less than the hop to a
+#: worker thread and back); a bigger one in a worker thread
+CHECK_ON_LOOP = 1000
 
 
 class MotionTrajectoryPart(Part):
@@ -83,6 +87,11 @@ class MotionTrajectoryPart(Part):
         #: the profile last executed and the time stamps of the readbacks
         #: before it, until its rows are written
         self._executed: tuple[Profile, dict[str, float]] | None = None
+        #: (scan content, axes, limits) of the last scan validate passed
+        self._checked_ok: Any = None
+        #: trajectory field -> (its time stamp, the array it holds), for the
+        #: arrays sent (or found there) last
+        self._sent: dict[str, tuple[float, Any]] = {}
 
     # ---- set up
     def setup(self, registrar: PartRegistrar) -> None:
@@ -122,6 +131,58 @@ class MotionTrajectoryPart(Part):
         if points is None:
             return []
         return [a for a in points.axes if a in self.axes]
+
+    def _already_at(self, motor: str, target: float) -> bool:
+        """Whether ``motor`` is still and within its retry deadband (RDBD,
+        ``deadband``) of ``target``: a motor record would not move there, so
+        no put is made."""
+        block = self.controller.process.get_block(motor)
+        if "deadband" not in block or not block["doneMoving"].value:
+            return False
+        position, deadband = block["position"].value, block["deadband"].value
+        if position is None or deadband is None:
+            return False
+        return abs(float(position) - float(target)) <= float(deadband)
+
+    def _holds(self, field: str, value: Any) -> bool:
+        """Whether the trajectory child's ``field`` (kept up to date by its
+        channel) holds ``value`` already, element for element. An array
+        this part sent is remembered with the IOC's time stamp of it: while
+        the field shows that time stamp (and its first, middle and last
+        values), comparing with what was sent (numpy) is enough; otherwise
+        the field's value is compared whole."""
+        import numpy as np
+
+        attr = self.controller.process.get_block(self.traj)[field]
+        if attr.alarm.severity >= AlarmSeverity.INVALID_ALARM:  # not connected
+            return False
+        now = attr.value
+        if not isinstance(value, np.ndarray):
+            return bool(now == value)
+        if now is None or len(now) != len(value):
+            return False
+        if not len(value):
+            return True
+        sent = self._sent.get(field)
+        ends = (0, len(value) // 2, len(value) - 1)
+        if (
+            sent is not None
+            and sent[0] == attr.timeStamp.to_time()
+            and all(now[i] == sent[1][i] for i in ends)  # and a few values
+        ):
+            same = np.array_equal(sent[1], value)
+        else:
+            same = np.array_equal(np.asarray(now, dtype=value.dtype), value)
+        if same:
+            self._remember(field, value)
+        return same
+
+    def _remember(self, field: str, value: Any) -> None:
+        """Note that the trajectory child's ``field`` holds array ``value``
+        as of its time stamp now."""
+        if hasattr(value, "dtype"):
+            attr = self.controller.process.get_block(self.traj)[field]
+            self._sent[field] = (attr.timeStamp.to_time(), value)
 
     def _capacity(self) -> int:
         return self.max_points
@@ -166,7 +227,18 @@ class MotionTrajectoryPart(Part):
             )
             for a in moved
         }
-        await asyncio.to_thread(self._check_points, points, moved, limits)
+        # the same scan checked against the same limits passed already (a
+        # beamline's validate, then its configure of this block)
+        key = None
+        if points.content is not None:
+            key = (points.content, tuple(moved), tuple(limits.items()))
+            if key == self._checked_ok:
+                return {}
+        if points.size <= CHECK_ON_LOOP:
+            self._check_points(points, moved, limits)
+        else:
+            await asyncio.to_thread(self._check_points, points, moved, limits)
+        self._checked_ok = key
         return {}
 
     def _check_points(
@@ -240,11 +312,12 @@ class MotionTrajectoryPart(Part):
         if not moved or start >= points.size:
             return
         stop = self.controller.next_configured(start)
-        chunk = points.chunk(start, stop, moved)
         accel = max(float(self._value(self.axes[a][1], "acceleration")) for a in moved)
         velocity = {a: float(self._value(self.axes[a][1], "velocity")) for a in moved}
-        try:
-            profile = build_profile(
+
+        def compute() -> Profile:
+            chunk = points.chunk(start, stop, moved)
+            return build_profile(
                 start,
                 chunk.lower,
                 chunk.positions,
@@ -254,6 +327,15 @@ class MotionTrajectoryPart(Part):
                 velocity,
                 moved,
             )
+
+        try:
+            # a big run's profile (milliseconds of numpy) is computed in a
+            # worker thread: the loop, and the other devices a beamline is
+            # configuring at the same time, go on meanwhile
+            if stop - start <= CHECK_ON_LOOP:
+                profile = compute()
+            else:
+                profile = await asyncio.to_thread(compute)
         except ProfileError as e:
             raise BadValueError(f"{self.controller.mri}: {e}") from None
         capacity = self._capacity()
@@ -272,14 +354,26 @@ class MotionTrajectoryPart(Part):
         arrays[(self.traj, "times")] = profile.times
         arrays[(self.traj, "pointIndices")] = profile.indices
         arrays[(self.traj, "numPoints")] = profile.size
+        # what the controller holds already (a scan configured again) is not
+        # sent again: 20,001-point arrays cost the IOC and the client
+        arrays = {k: v for k, v in arrays.items() if not self._holds(k[1], v)}
 
         async def load() -> None:
+            for _, field in arrays:
+                self._sent.pop(field, None)
             await task.put(arrays)
+            for (_, field), value in arrays.items():
+                self._remember(field, value)
             await task.process.post([self.traj, "buildProfile"])
 
         # the run-up move (the scan's motors to their start, at their
-        # velocity) and the profile's loading and build at the same time
-        run_up = {(self.axes[a][1], "position"): profile.run_up[a] for a in moved}
+        # velocity) and the profile's loading and build at the same time;
+        # a motor already there (within its deadband) is not moved
+        run_up = {
+            (self.axes[a][1], "position"): profile.run_up[a]
+            for a in moved
+            if not self._already_at(self.axes[a][1], profile.run_up[a])
+        }
         jobs = [asyncio.ensure_future(task.put(run_up)), asyncio.ensure_future(load())]
         try:
             await asyncio.gather(*jobs)

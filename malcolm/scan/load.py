@@ -103,7 +103,9 @@ def scan_points(generator: Any) -> ScanPoints:
     large; no point is computed, except where a region joins dimensions (its
     kept points are found once, in chunks). The last few scans built from
     data are kept by content, so the same dict given again (validate, then
-    configure) is not built again. Safe to call from any thread.
+    configure) is not built again; the points say what they were built from
+    (`ScanPoints.content`), so a check of a scan made once need not be made
+    again for the same content. Safe to call from any thread.
 
     Args:
         generator: A scanspec `Spec`; a CompoundGenerator dict as GDA sends it;
@@ -132,6 +134,7 @@ def scan_points(generator: Any) -> ScanPoints:
         points = None if key is None else _built.get(key)
         if points is None:
             points = points_from_data(generator)
+            points.content = key
             if key is not None:
                 _built.put(key, points)
         return points

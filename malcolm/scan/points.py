@@ -135,11 +135,18 @@ class ScanPoints:
         ]
         self._size = math.prod(self.shape)
         self._full: dict[str, Any] = {}
+        #: The canonical JSON of the data the scan was built from
+        #: (`malcolm.scan.scan_points` sets it), None if unknown: two scans
+        #: with the same content are the same points, so a check of one
+        #: holds for the other (the layers of a configure check a scan once)
+        self.content: str | None = None
 
     def copy(self) -> ScanPoints:
-        """The same scan, sharing this one's dimensions but none of the
-        whole-scan arrays it may have kept."""
-        return ScanPoints(self._dims, self._duration)
+        """The same scan, sharing this one's dimensions (and `content`) but
+        none of the whole-scan arrays it may have kept."""
+        same = ScanPoints(self._dims, self._duration)
+        same.content = self.content
+        return same
 
     def __repr__(self) -> str:
         return f"<ScanPoints axes={self.axes} shape={self.shape}>"

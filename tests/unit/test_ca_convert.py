@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 from epics import dbr
 
@@ -59,3 +60,20 @@ def test_values_are_marshalled_for_the_native_type_or_refused():
         _marshal(2.5, dbr.LONG, 1)
     with pytest.raises(ValueError, match="not a number"):
         _marshal("abc", dbr.DOUBLE, 1)
+
+
+def test_arrays_and_text_waveforms_are_marshalled_whole():
+    positions = np.linspace(-1.0, 1.0, 20_001)
+    data, n = _marshal(positions, dbr.DOUBLE, 50_000)
+    assert n == 20_001 and np.array_equal(np.ctypeslib.as_array(data), positions)
+    data, n = _marshal(positions[:5], dbr.DOUBLE, 3)  # cut to the PV's count
+    assert n == 3 and list(data) == list(positions[:3])
+    data, n = _marshal(np.array([4.0, -2.0]), dbr.LONG, 5)  # whole floats
+    assert n == 2 and list(data) == [4, -2]
+    text = np.frombuffer(b'<pos n="1"/>' + b"\0", dtype=np.uint8)
+    data, n = _marshal(text, dbr.CHAR, 65_536)
+    assert n == 13 and bytes(data) == b'<pos n="1"/>\0'
+    data, n = _marshal([], dbr.DOUBLE, 10)  # nothing: one zero, as before
+    assert n == 1 and list(data) == [0.0]
+    with pytest.raises(ValueError, match="not whole"):
+        _marshal(np.array([1.0, np.nan]), dbr.LONG, 5)

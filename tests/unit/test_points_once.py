@@ -80,3 +80,15 @@ def test_a_run_computes_its_own_steps_not_the_whole_scan(
             await process.stop()
 
     asyncio.run(main())
+
+
+def test_points_say_what_they_were_built_from() -> None:
+    from malcolm.scan import gda, scan_points
+
+    generator = gda.compound(gda.line("x", 7, 0.0, 1.0), duration=0.125)
+    first = scan_points(generator)
+    again = scan_points(dict(generator))  # the same content: the same scan
+    assert first.content is not None and again.content == first.content
+    assert first.copy().content == first.content
+    other = scan_points(gda.compound(gda.line("x", 7, 0.0, 1.0), duration=0.25))
+    assert other.content != first.content

@@ -235,7 +235,7 @@ class PyepicsChannel(Channel):
                     f"{self.write}: text of {len(encoded)} bytes does not fit"
                     f" in {target.count - 1}"
                 )
-            return list(encoded) + [0]
+            return np.frombuffer(encoded + b"\0", dtype=np.uint8)
         if isinstance(value, bool):
             return int(value)
         if isinstance(value, np.ndarray | list | tuple):

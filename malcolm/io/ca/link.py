@@ -313,7 +313,11 @@ class Link:
 
 
 def _marshal(value: Any, ftype: int, count: int) -> tuple[Any, int]:
-    """``value`` as a ctypes array of the PV's native type, and its length."""
+    """``value`` as a ctypes array of the PV's native type, and its length.
+
+    Arrays are converted whole by numpy and copied into the ctypes array in
+    one go (a 65,536-byte text waveform or a 20,001-point trajectory went
+    element by element through Python lists: milliseconds a put)."""
     if ftype == dbr.STRING:
         data = (1 * dbr.Map[dbr.STRING])()
         data[0].value = str(value).encode("utf-8")[:39]
@@ -322,13 +326,18 @@ def _marshal(value: Any, ftype: int, count: int) -> tuple[Any, int]:
     if values.ndim != 1 or values.dtype.kind not in "biuf":
         raise ValueError(f"{value!r} is not a number or an array of numbers")
     n = min(len(values), count) or 1
-    data = (n * dbr.Map[ftype])()
-    try:
-        data[: len(values[:n])] = values[:n].tolist()
-    except TypeError:  # a float for an integer PV
-        if not np.all(np.equal(np.mod(values[:n], 1), 0)):
-            raise ValueError(f"{value!r} is not whole for an integer PV") from None
-        data[: len(values[:n])] = values[:n].astype(np.int64).tolist()
+    ctype = dbr.Map[ftype]
+    native = np.dtype(ctype)
+    part = values[:n]
+    if native.kind in "iu" and part.dtype.kind == "f":
+        if not np.all(np.equal(np.mod(part, 1), 0)):
+            raise ValueError(f"{value!r} is not whole for an integer PV")
+        part = part.astype(np.int64)
+    data = (n * ctype)()
+    if len(part):
+        # wraps out-of-range integers as ctypes' own assignment did
+        converted = np.ascontiguousarray(part.astype(native, copy=False))
+        ctypes.memmove(data, converted.ctypes.data, converted.nbytes)
     return data, n
 
 

@@ -3,10 +3,18 @@
 A motor ``P:M1`` serves the motor record's fields as PVs ``P:M1:VAL`` (a
 put completes when the move is done), ``:RBV``, ``:VELO``, ``:ACCL``,
 ``:DMOV``, ``:STOP`` (a put of 1 stops the move), ``:HLM``, ``:LLM`` (which
-become ``VAL``'s drive limits), ``:VMAX`` (the fastest it may go, in mm/s) and
-``:EGU``. A soft IOC cannot make record
-fields, so ``:`` stands where a motor record has ``.``; the
+become ``VAL``'s drive limits), ``:VMAX`` (the fastest it may go, in mm/s),
+``:RDBD`` (the retry deadband, mm) and ``:EGU``. A soft IOC cannot make
+record fields, so ``:`` stands where a motor record has ``.``; the
 ``motor.MotorRecord`` definition takes the separator as a parameter.
+
+A move follows a trapezoidal velocity profile as a motor record's does:
+``ACCL`` seconds to reach ``VELO``, at ``VELO``, ``ACCL`` seconds to stop
+(:mod:`.trapezoid`); a distance too short to reach ``VELO`` is a triangle,
+``2 * sqrt(d / a)`` with ``a = VELO / ACCL``. A put to ``VAL`` within
+``RDBD`` of the readback completes at once and moves nothing (``DMOV``
+stays 1), as a motor record does not move to a target within its retry
+deadband. :attr:`Motor.moves` counts the moves made.
 
 The trajectory controller ``P:TRAJ:`` (after pmac's trajectory scan):
 ``PositionsA``/``PositionsB`` (double arrays), ``Times`` (a long array of
@@ -51,15 +59,19 @@ import numpy as np
 from softioc import builder
 
 from .pace import LATE_SLICE, Throttled
+from .trapezoid import move_time, moved_by
 
 TICK = 0.01  # seconds between position updates of a move
+#: the motors' retry deadband (mm): a target this close is not moved to
+RDBD = 1e-4
 
 #: bytes of the largest array the IOC serves (50,000 doubles and more)
 MAX_ARRAY_BYTES = 1_000_000
 
 
 class Motor:
-    """A motor moving at VELO (after ACCL seconds of acceleration)."""
+    """A motor moving on a trapezoidal profile at VELO (ACCL seconds to
+    reach it); a target within RDBD of where it is is not moved to."""
 
     def __init__(self, name: str, low: float = -100.0, high: float = 100.0) -> None:
         builder.SetDeviceName(name)
@@ -70,6 +82,9 @@ class Motor:
         )
         self.accl = builder.aOut(
             "ACCL", initial_value=0.1, EGU="s", PREC=3, DRVL=0, DRVH=10
+        )
+        self.rdbd = builder.aOut(
+            "RDBD", initial_value=RDBD, EGU="mm", PREC=6, DRVL=0, DRVH=10
         )
         self.val = builder.aOut(
             "VAL",
@@ -90,6 +105,8 @@ class Motor:
         )
         builder.stringIn("EGU", initial_value="mm")
         self.stopped = False
+        #: moves made (a target within the deadband makes none)
+        self.moves = 0
 
     def _high(self, value: float) -> None:
         self.val.set_field("DRVH", repr(float(value)))
@@ -102,24 +119,30 @@ class Motor:
             self.stopped = True
 
     async def move(self, target: float) -> None:
-        """Move to ``target``; returns when done (or stopped)."""
+        """Move to ``target``; returns when done (or stopped), at once if
+        ``target`` is within the deadband."""
+        start = self.rbv.get()
+        distance = target - start
+        if abs(distance) <= self.rdbd.get():
+            return
+        self.moves += 1
         self.stopped = False
         self.dmov.set(0)
         try:
-            start = self.rbv.get()
             velocity = max(self.velo.get(), 1e-6)
+            accl = max(self.accl.get(), 0.0)
             loop = asyncio.get_running_loop()
             began = loop.time()
-            duration = abs(target - start) / velocity + (
-                self.accl.get() if target != start else 0.0
-            )
+            duration = move_time(distance, velocity, accl)
+            sign = 1.0 if distance > 0 else -1.0
             while not self.stopped:
                 elapsed = loop.time() - began
                 if elapsed >= duration:
                     self.rbv.set(target)
                     break
-                self.rbv.set(start + (target - start) * elapsed / duration)
-                await asyncio.sleep(TICK)
+                along = moved_by(elapsed, distance, velocity, accl)
+                self.rbv.set(start + sign * along)
+                await asyncio.sleep(min(TICK, duration - elapsed))
         finally:
             self.dmov.set(1)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 
+import h5py
 import numpy as np
 
 from malcolm.config.build import build_definition
@@ -126,3 +127,28 @@ def test_a_10000_point_scan_is_loaded_and_armed_at_configure(ioc, tmp_path):
             await process.stop()
 
     run(scenario())
+
+
+def test_batches_of_positions_sent_at_once_tag_the_frames_in_order(ioc, tmp_path):
+    # 6001 positions: three XML puts sent together at configure; each frame
+    # must carry its own point's position, so the batches went in in order
+    process = make_manager()
+    total = 6001
+
+    async def scenario():
+        det = await started(process)
+        try:
+            params = {"generator": line(total, 0.0005), "fileDir": str(tmp_path)}
+            await process.post(["DET", "configure"], params)
+            assert process.get_block("DET:POS").positions.value == total
+            await process.post(["DET", "run"])
+            assert det.state.value == "Finished"
+        finally:
+            await process.stop()
+
+    run(scenario())
+    with h5py.File(str(tmp_path / "det.h5"), "r") as f:
+        points = [int(n) for n in f["entry/positions/n"][:]]
+        uids = list(f["entry/uid"][:])
+    assert points == list(range(total))
+    assert uids == list(range(1, total + 1))
