@@ -233,3 +233,41 @@ def test_changes_the_fast_path_recorded_are_in_the_channels_data(served):  # noq
         assert (whole["counter.value"], whole["delta.value"]) == (7.0, 5.0)
     finally:
         sub.close()
+
+
+def test_an_update_leaves_out_leaves_set_to_what_they_hold(served):  # noqa: F811
+    """A change whose alarm and timeStamp seconds stay the same carries only
+    what moved; after the channel's value was set another way (a whole
+    replacement, not by the setters), a change back to what the setters
+    last set still goes out, and a new client gets every value."""
+    import queue
+
+    tp, process, server, ctx = served
+    updates: queue.Queue[Any] = queue.Queue()
+    sub = ctx.monitor("FIRST.counter", updates.put, request="record[queueSize=10]")
+    try:
+        updates.get(timeout=10)  # the whole field
+        block = process.get_block("FIRST")
+        process.call_threadsafe(block.counter.set_value, 1.0).result(5)
+        updates.get(timeout=10)
+        process.call_threadsafe(block.counter.set_value, 2.0).result(5)
+        changed = updates.get(timeout=10).changedSet()
+        assert "value" in changed and "timeStamp.nanoseconds" in changed
+        assert not any(c.startswith("alarm") for c in changed), changed
+        assert "timeStamp.userTag" not in changed
+
+        async def replace() -> None:
+            block.counter.value = 5.0  # the whole field, not by the setters
+            block.notify([[["counter"], block.counter.to_dict()]])
+            block.counter.set_value(2.0)  # what the setters last set
+
+        process.call_threadsafe(replace).result(5)
+        assert updates.get(timeout=10)["value"] == 5.0
+        assert updates.get(timeout=10)["value"] == 2.0
+        assert ctx.get("FIRST.counter", timeout=5)["value"] == 2.0
+        got = ctx.get("FIRST.counter", timeout=5)
+        assert got["alarm.severity"] == 0 and got["timeStamp.secondsPastEpoch"] > 0
+        time.sleep(0.2)
+        assert updates.empty()  # exactly one update per change
+    finally:
+        sub.close()

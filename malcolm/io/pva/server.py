@@ -79,6 +79,10 @@ class _Channel:
         self.closed = False
         # change path -> its compiled setter, for self.spec (reset with it)
         self._setters: dict[tuple[str, ...], Setter] = {}
+        # leaf -> what the setters last set it to, to leave it unmarked when
+        # it is set to that again (malcolm.io.pva.setters); cleared whenever
+        # the PV's value is set another way
+        self._last: dict[str, Any] = {}
         # the block meta and a meta channel go whole: never the fast path
         self._fast_ok = self.path[1:] != ["meta"]
 
@@ -114,6 +118,7 @@ class _Channel:
         value = to_value(self.data)
         self.type = value.type()
         self._update = None
+        self._last.clear()
         self.pv.open(value)
 
     def _next_update(self) -> Value:
@@ -171,6 +176,7 @@ class _Channel:
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
             return
+        self._last.clear()  # the PV's value is set here without the setters
         if self.data is None or any(not c[0] and len(c) == 2 for c in changes):
             if changes[-1] == [[]]:
                 self.server._forget(self)
@@ -249,7 +255,9 @@ class _Channel:
                 sub_spec = spec_at(self.spec, path)
                 if sub_spec is None:
                     return False
-                setter = setters[key] = compile_setter(sub_spec, ".".join(path))
+                setter = setters[key] = compile_setter(
+                    sub_spec, ".".join(path), last=self._last
+                )
             if not setter(value, change[1]):
                 return False
             keys.append(key)
@@ -265,6 +273,7 @@ class _Channel:
 
     def _reopen(self, spec: Any = None) -> None:
         self._setters.clear()
+        self._last.clear()
         self.spec = spec or type_spec(self.data)
         value = to_value(self.data)
         self.type = value.type()
