@@ -271,3 +271,26 @@ def test_an_update_leaves_out_leaves_set_to_what_they_hold(served):  # noqa: F81
         assert updates.empty()  # exactly one update per change
     finally:
         sub.close()
+
+
+def test_a_call_reads_returns_applying_recorded_changes_only_there(served):  # noqa: F811
+    """A call types its result by the method's returns in the channel's data:
+    the changes the fast path recorded are applied first if one is at that
+    path (the returns changed), not for a took or returned alone."""
+    tp, process, server, ctx = served
+    ctx.get("FIRST.zero", timeout=5)
+    block = process.get_block("FIRST")
+    chan = server._channels["FIRST.zero"]
+
+    async def check() -> None:
+        block.zero.set_took({})  # recorded by the fast path
+        assert chan._pending
+        before = chan._returns("FIRST", "zero")
+        assert chan._pending  # left as it was
+        returns = dict(before, required=["nothing"])  # a change that fits
+        block.notify([[["zero", "meta", "returns"], returns]])
+        assert ("meta", "returns") in chan._pending
+        assert chan._returns("FIRST", "zero")["required"] == ["nothing"]
+        assert not chan._pending  # applied for that
+
+    process.call_threadsafe(check).result(5)

@@ -85,6 +85,7 @@ class _Channel:
         self._last: dict[str, Any] = {}
         # the block meta and a meta channel go whole: never the fast path
         self._fast_ok = self.path[1:] != ["meta"]
+        self._block = len(self.path) == 1  # the whole block's channel
 
     @property
     def data(self) -> Any:
@@ -239,8 +240,12 @@ class _Channel:
         (the common case: a value, its alarm and timeStamp); False, with
         nothing done, for anything else (deletions, the whole channel, the
         block's meta, a new shape), which :meth:`_apply` does in full."""
-        value = self._next_update()
-        block = len(self.path) == 1
+        value = self._update  # self._next_update(), in line
+        if value is None:
+            value = self._update = Value(self.type)
+        else:
+            value.unmark()
+        block = self._block
         setters = self._setters
         keys = []
         for change in changes:
@@ -343,14 +348,26 @@ class _Channel:
         result = await process.post([mri, method], args)
         op.done(result_value(result, self._returns(mri, method)))
 
+    def _current(self, path: tuple[str, ...]) -> Any:
+        """The channel's data, current at ``path``: the changes the fast path
+        recorded are applied first only if one of them is at, above or below
+        ``path`` (a call's took and returned leave its returns as they are,
+        and are not applied for every call)."""
+        for key in self._pending:
+            n = min(len(key), len(path))
+            if key[:n] == path[:n]:
+                return self.data
+        return self._data
+
     def _returns(self, mri: str, method: str) -> Any:
         """The method's ``returns`` meta: from this channel's copy if it
         holds the method (kept current on the loop), else from the process."""
         try:
             if self.path == [mri, method]:
-                return self.data["meta"]["returns"]
+                return self._current(("meta", "returns"))["meta"]["returns"]
             if self.path == [mri]:
-                return self.data[method]["meta"]["returns"]
+                where = (method, "meta", "returns")
+                return self._current(where)[method]["meta"]["returns"]
         except (KeyError, TypeError):
             pass
         return self.server.process.get([mri, method, "meta", "returns"])
