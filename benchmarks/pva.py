@@ -343,14 +343,16 @@ def updates_per_change(ctx: Context, name: str, puts: int) -> float:
 
 
 def served_spin(process: Any) -> Spin:
-    block = process.get_block("COUNTER")
+    # the attribute, as the part that owns it holds it (a look-up through the
+    # block's __getattr__ costs about 0.8 us here, no part pays it per change)
+    counter = process.get_block("COUNTER").counter
 
     async def spin(stop: threading.Event, start: int) -> None:
         n = start - 1
         while not stop.is_set():
             for _ in range(100):
                 n += 1
-                block.counter.set_value(float(n))
+                counter.set_value(float(n))
             await asyncio.sleep(0)
 
     return lambda stop, start: process.call_threadsafe(spin, stop, start).result()
