@@ -318,10 +318,14 @@ class Process:
         if self._delivering:
             return  # the outer _flush delivers these after what came before
         self._delivering = True
+        queue = self._queue
         try:
-            while self._queue:
-                sub, payload = self._queue.popleft()
+            while queue:
+                sub, payload = queue.popleft()
                 if sub.active:
-                    self._deliver(sub, payload)
+                    try:  # _deliver, in line: once per subscriber per change
+                        sub.callback(payload)
+                    except Exception:
+                        log.exception("subscriber %r raised", sub)
         finally:
             self._delivering = False
