@@ -288,6 +288,12 @@ class Process:
         rest = sub.rest
         if not rest:  # the whole block: every change, its path copied
             return [[list(c[0]), *c[1:]] for c in changes]
+        if len(rest) == 1:  # a field (the common case): in one pass
+            name = rest[0]
+            try:
+                return [[list(c[0][1:]), *c[1:]] for c in changes if c[0][0] == name]
+            except IndexError:  # the whole block replaced or deleted: below
+                pass
         n = len(rest)
         out: list[Change] = []
         for change in changes:
