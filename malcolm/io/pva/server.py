@@ -238,7 +238,7 @@ class _Channel:
     def _apply_fast(self, changes: list[list[Any]]) -> bool:
         """Post ``changes`` if each sets a field whose type it still fits
         (the common case: a value, its alarm and timeStamp); False, with
-        nothing done, for anything else (deletions, the whole channel, the
+        nothing posted, for anything else (deletions, the whole channel, the
         block's meta, a new shape), which :meth:`_apply` does in full."""
         value = self._update  # self._next_update(), in line
         if value is None:
@@ -247,7 +247,12 @@ class _Channel:
             value.unmark()
         block = self._block
         setters = self._setters
-        keys = []
+        # each change's data is recorded, applied to data when it is next
+        # read: a path's latest change moved last, so applying them in order
+        # gives what applying every change in turn would. One recorded before
+        # a change that does not fit is harmless: _apply then applies the
+        # recorded ones and every change again, which gives the same data
+        pending = self._pending
         for change in changes:
             if len(change) != 2:
                 return False
@@ -263,16 +268,11 @@ class _Channel:
                 setter = setters[key] = compile_setter(
                     sub_spec, ".".join(path), last=self._last
                 )
-            if not setter(value, change[1]):
+            data = change[1]
+            if not setter(value, data):
                 return False
-            keys.append(key)
-        # recorded, applied to data when it is next read: a path's latest
-        # change moved last, so applying them in order gives what applying
-        # every change in turn would
-        pending = self._pending
-        for key, change in zip(keys, changes):
             pending.pop(key, None)
-            pending[key] = change[1]
+            pending[key] = data
         _post(self.pv, value)
         return True
 
