@@ -102,8 +102,11 @@ def test_an_error_goes_to_the_client_as_its_type_and_message():
         await from_callback(start_op, first, fails_at_once(first), tasks)
         await from_callback(start_op, later, fails_later(later), tasks)
         assert first.answers == [(None, "ValueError: bad at once")]
-        await asyncio.wait(set(tasks))
+        waiting = set(tasks)
+        await asyncio.wait(waiting)
         assert later.answers == [(None, "KeyError: 'bad later'")]
+        # answered, the Task ends as the operation would have returned
+        assert all(t.exception() is None for t in waiting)
 
     asyncio.run(main())
 
