@@ -94,18 +94,25 @@ class Attribute(Field):
         validate: bool = True,
     ) -> None:
         """Set the value (and optionally alarm); publish one delta."""
-        if self._off_loop(self.set_value, value, alarm, timeStamp, validate):
-            return
+        # the common case (on the loop, or no loop yet) checked in line: this
+        # runs for every change of every attribute
+        block = self.block
+        owner = block.owner if block is not None else None
+        if owner is not None and not owner.here():
+            if self._off_loop(self.set_value, value, alarm, timeStamp, validate):
+                return
         if validate:
             value = self.validate(value)
         self.value = value
-        self.timeStamp = timeStamp or TimeStamp.now()
-        changes: list[Change] = [[[self.name, "value"], self.value_dict()]]
+        self.timeStamp = stamp = timeStamp or TimeStamp.now()
+        name = self.name
+        changes: list[Change] = [[[name, "value"], self.value_dict()]]
         if alarm is not None and alarm != self.alarm:
             self.alarm = alarm
-            changes.append([[self.name, "alarm"], alarm.to_dict()])
-        changes.append([[self.name, "timeStamp"], self.timeStamp.to_dict()])
-        self._notify(changes)
+            changes.append([[name, "alarm"], alarm.to_dict()])
+        changes.append([[name, "timeStamp"], stamp.to_dict()])
+        if block is not None:
+            block.notify(changes)
 
     def set_alarm(self, alarm: Alarm) -> None:
         """Set the alarm (and timeStamp) alone; publish one delta."""

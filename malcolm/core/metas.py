@@ -338,6 +338,11 @@ class MethodMeta(Meta):
         default = self.defaults[name]
         if default is None:
             return None
+        if type(default) in _IMMUTABLE:  # nothing to copy (most defaults)
+            try:
+                return meta.validate(default)
+            except BadValueError:
+                return default
         try:
             return meta.validate(copy.deepcopy(default))
         except BadValueError:
@@ -377,6 +382,8 @@ class BlockMeta(Meta):
 
 #: element types a list keeps as they are (a long list of them is copied in C)
 _SCALARS = frozenset({float, int, str, bool, type(None)})
+#: values a copy of which is the value itself
+_IMMUTABLE = _SCALARS
 
 
 def _plain(value: Any) -> Any:

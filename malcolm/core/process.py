@@ -27,6 +27,8 @@ class Subscription:
 
     def __init__(self, path: Sequence[str], callback: Callback, delta: bool) -> None:
         self.path = list(path)
+        #: the path below the mri, which the changes of a block are relative to
+        self.rest = self.path[1:]
         self.callback = callback
         self.delta = delta
         self.active = True
@@ -283,11 +285,21 @@ class Process:
 
     def _relative(self, sub: Subscription, changes: list[Change]) -> list[Change]:
         """``changes`` as seen from ``sub.path`` (empty if none touch it)."""
-        rest = sub.path[1:]
+        rest = sub.rest
+        if not rest:  # the whole block: every change, its path copied
+            return [[list(c[0]), *c[1:]] for c in changes]
+        if len(rest) == 1:  # a field (the common case): in one pass
+            name = rest[0]
+            try:
+                return [[list(c[0][1:]), *c[1:]] for c in changes if c[0][0] == name]
+            except IndexError:  # the whole block replaced or deleted: below
+                pass
         n = len(rest)
         out: list[Change] = []
         for change in changes:
-            p = list(change[0])
+            p = change[0]
+            if type(p) is not list:
+                p = list(p)
             if p[:n] == rest:
                 out.append([p[n:], *change[1:]])
             elif rest[: len(p)] == p:
@@ -297,21 +309,29 @@ class Process:
         return out
 
     def _on_changes(self, mri: str, changes: list[Change]) -> None:
-        for sub in list(self._subs.get(mri, ())):
+        subs = self._subs.get(mri)
+        if not subs:
+            return  # nothing queued: an outer _flush (if any) has the rest
+        queue = self._queue
+        for sub in list(subs):
             relative = self._relative(sub, changes)
             if relative:
                 payload = relative if sub.delta else self._get_or_none(sub.path)[1]
-                self._queue.append((sub, payload))
+                queue.append((sub, payload))
         self._flush()
 
     def _flush(self) -> None:
         if self._delivering:
             return  # the outer _flush delivers these after what came before
         self._delivering = True
+        queue = self._queue
         try:
-            while self._queue:
-                sub, payload = self._queue.popleft()
+            while queue:
+                sub, payload = queue.popleft()
                 if sub.active:
-                    self._deliver(sub, payload)
+                    try:  # _deliver, in line: once per subscriber per change
+                        sub.callback(payload)
+                    except Exception:
+                        log.exception("subscriber %r raised", sub)
         finally:
             self._delivering = False

@@ -20,8 +20,15 @@ class TimeStamp:
 
     @classmethod
     def now(cls) -> TimeStamp:
-        ns = time.time_ns()
-        return cls(ns // 1_000_000_000, ns % 1_000_000_000)
+        # made as __init__ would, without the frozen dataclass's setattr per
+        # field (half the cost; every change of every attribute takes one)
+        seconds, nanoseconds = divmod(time.time_ns(), 1_000_000_000)
+        stamp = object.__new__(cls)
+        fields = stamp.__dict__
+        fields["secondsPastEpoch"] = seconds
+        fields["nanoseconds"] = nanoseconds
+        fields["userTag"] = 0
+        return stamp
 
     def to_time(self) -> float:
         return self.secondsPastEpoch + self.nanoseconds * 1e-9

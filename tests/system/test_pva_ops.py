@@ -102,8 +102,11 @@ def test_an_error_goes_to_the_client_as_its_type_and_message():
         await from_callback(start_op, first, fails_at_once(first), tasks)
         await from_callback(start_op, later, fails_later(later), tasks)
         assert first.answers == [(None, "ValueError: bad at once")]
-        await asyncio.wait(set(tasks))
+        waiting = set(tasks)
+        await asyncio.wait(waiting)
         assert later.answers == [(None, "KeyError: 'bad later'")]
+        # answered, the Task ends as the operation would have returned
+        assert all(t.exception() is None for t in waiting)
 
     asyncio.run(main())
 
@@ -233,3 +236,64 @@ def test_changes_the_fast_path_recorded_are_in_the_channels_data(served):  # noq
         assert (whole["counter.value"], whole["delta.value"]) == (7.0, 5.0)
     finally:
         sub.close()
+
+
+def test_an_update_leaves_out_leaves_set_to_what_they_hold(served):  # noqa: F811
+    """A change whose alarm and timeStamp seconds stay the same carries only
+    what moved; after the channel's value was set another way (a whole
+    replacement, not by the setters), a change back to what the setters
+    last set still goes out, and a new client gets every value."""
+    import queue
+
+    tp, process, server, ctx = served
+    updates: queue.Queue[Any] = queue.Queue()
+    sub = ctx.monitor("FIRST.counter", updates.put, request="record[queueSize=10]")
+    try:
+        updates.get(timeout=10)  # the whole field
+        block = process.get_block("FIRST")
+        process.call_threadsafe(block.counter.set_value, 1.0).result(5)
+        updates.get(timeout=10)
+        process.call_threadsafe(block.counter.set_value, 2.0).result(5)
+        changed = updates.get(timeout=10).changedSet()
+        assert "value" in changed and "timeStamp.nanoseconds" in changed
+        assert not any(c.startswith("alarm") for c in changed), changed
+        assert "timeStamp.userTag" not in changed
+
+        async def replace() -> None:
+            block.counter.value = 5.0  # the whole field, not by the setters
+            block.notify([[["counter"], block.counter.to_dict()]])
+            block.counter.set_value(2.0)  # what the setters last set
+
+        process.call_threadsafe(replace).result(5)
+        assert updates.get(timeout=10)["value"] == 5.0
+        assert updates.get(timeout=10)["value"] == 2.0
+        assert ctx.get("FIRST.counter", timeout=5)["value"] == 2.0
+        got = ctx.get("FIRST.counter", timeout=5)
+        assert got["alarm.severity"] == 0 and got["timeStamp.secondsPastEpoch"] > 0
+        time.sleep(0.2)
+        assert updates.empty()  # exactly one update per change
+    finally:
+        sub.close()
+
+
+def test_a_call_reads_returns_applying_recorded_changes_only_there(served):  # noqa: F811
+    """A call types its result by the method's returns in the channel's data:
+    the changes the fast path recorded are applied first if one is at that
+    path (the returns changed), not for a took or returned alone."""
+    tp, process, server, ctx = served
+    ctx.get("FIRST.zero", timeout=5)
+    block = process.get_block("FIRST")
+    chan = server._channels["FIRST.zero"]
+
+    async def check() -> None:
+        block.zero.set_took({})  # recorded by the fast path
+        assert chan._pending
+        before = chan._returns("FIRST", "zero")
+        assert chan._pending  # left as it was
+        returns = dict(before, required=["nothing"])  # a change that fits
+        block.notify([[["zero", "meta", "returns"], returns]])
+        assert ("meta", "returns") in chan._pending
+        assert chan._returns("FIRST", "zero")["required"] == ["nothing"]
+        assert not chan._pending  # applied for that
+
+    process.call_threadsafe(check).result(5)

@@ -302,11 +302,14 @@ def to_dict(value: Any) -> Any:
         typeid = value.getID()
         if typeid != STRUCTURE:
             out["typeid"] = typeid
-        vtype = value.type()
+        vtype = None  # the type, made (a copy) only if needed
         for key in value.keys():
             sub = value[key]
-            if sub is None and str(vtype[key]).startswith("a"):
-                sub = []  # p4p gives None for an empty numeric array
+            if sub is None:
+                if vtype is None:
+                    vtype = value.type()
+                if str(vtype[key]).startswith("a"):
+                    sub = []  # p4p gives None for an empty numeric array
             out[key] = to_dict(sub)
         if typeid == _METHOD_LOG and isinstance(out.get("value"), dict):
             present = out.get("present") or []

@@ -80,7 +80,7 @@ def start_op(
     While it waits, its Task is in ``tasks`` (cancelled when the server
     closes)."""
     loop = asyncio.get_running_loop()
-    step = _EagerStep(_answering(op, coro))
+    step = _EagerStep(op, coro)
     context = contextvars.copy_context()  # the Task's: the step runs in it
     task = loop.create_task(step, context=context)  # type: ignore[arg-type]
     eager = _enter_task is not None and _leave_task is not None
@@ -95,13 +95,6 @@ def start_op(
         task.add_done_callback(tasks.discard)
 
 
-async def _answering(op: Any, coro: Coroutine[Any, Any, None]) -> None:
-    try:
-        await coro
-    except Exception as e:
-        op.done(error=error_text(e))
-
-
 _UNSTARTED = object()
 
 
@@ -109,13 +102,15 @@ class _EagerStep:
     """What a Task runs for a coroutine whose first step :meth:`first` took
     before the Task's turn: the Task's first ``send`` gives back what that
     step gave (the future it waits on, or its end); later sends and throws
-    go straight to the coroutine. (The coroutine protocol, so that
-    ``asyncio.Task`` takes it.)"""
+    go straight to the coroutine. An Exception the coroutine raises is
+    ``op``'s error, and the step ends as the coroutine would have returned.
+    (The coroutine protocol, so that ``asyncio.Task`` takes it.)"""
 
-    __slots__ = ("coro", "_first")
+    __slots__ = ("coro", "op", "_first")
 
-    def __init__(self, coro: Coroutine[Any, Any, Any]) -> None:
+    def __init__(self, op: Any, coro: Coroutine[Any, Any, Any]) -> None:
         self.coro = coro
+        self.op = op
         self._first: Any = _UNSTARTED
 
     @property
@@ -125,14 +120,23 @@ class _EagerStep:
 
     def first(self) -> None:
         try:
-            self._first = ("yield", self.coro.send(None))
+            self._first = ("yield", self._resume(self.coro.send, None))
         except BaseException as e:  # its end (StopIteration) or its error
             self._first = ("raise", e)
+
+    def _resume(self, func: Callable[..., Any], *args: Any) -> Any:
+        try:
+            return func(*args)
+        except StopIteration:
+            raise
+        except Exception as e:  # the client's error; the operation ends
+            self.op.done(error=error_text(e))
+            raise StopIteration from None
 
     def send(self, value: Any) -> Any:
         first, self._first = self._first, None
         if first is None or first is _UNSTARTED:
-            return self.coro.send(value)
+            return self._resume(self.coro.send, value)
         kind, what = first
         if kind == "raise":
             raise what
@@ -140,7 +144,7 @@ class _EagerStep:
 
     def throw(self, *exc: Any) -> Any:
         self._first = None
-        return self.coro.throw(*exc)
+        return self._resume(self.coro.throw, *exc)
 
     def close(self) -> None:
         self._first = None

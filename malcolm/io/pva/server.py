@@ -79,8 +79,13 @@ class _Channel:
         self.closed = False
         # change path -> its compiled setter, for self.spec (reset with it)
         self._setters: dict[tuple[str, ...], Setter] = {}
+        # leaf -> what the setters last set it to, to leave it unmarked when
+        # it is set to that again (malcolm.io.pva.setters); cleared whenever
+        # the PV's value is set another way
+        self._last: dict[str, Any] = {}
         # the block meta and a meta channel go whole: never the fast path
         self._fast_ok = self.path[1:] != ["meta"]
+        self._block = len(self.path) == 1  # the whole block's channel
 
     @property
     def data(self) -> Any:
@@ -114,6 +119,7 @@ class _Channel:
         value = to_value(self.data)
         self.type = value.type()
         self._update = None
+        self._last.clear()
         self.pv.open(value)
 
     def _next_update(self) -> Value:
@@ -171,6 +177,7 @@ class _Channel:
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
             return
+        self._last.clear()  # the PV's value is set here without the setters
         if self.data is None or any(not c[0] and len(c) == 2 for c in changes):
             if changes[-1] == [[]]:
                 self.server._forget(self)
@@ -231,12 +238,21 @@ class _Channel:
     def _apply_fast(self, changes: list[list[Any]]) -> bool:
         """Post ``changes`` if each sets a field whose type it still fits
         (the common case: a value, its alarm and timeStamp); False, with
-        nothing done, for anything else (deletions, the whole channel, the
+        nothing posted, for anything else (deletions, the whole channel, the
         block's meta, a new shape), which :meth:`_apply` does in full."""
-        value = self._next_update()
-        block = len(self.path) == 1
+        value = self._update  # self._next_update(), in line
+        if value is None:
+            value = self._update = Value(self.type)
+        else:
+            value.unmark()
+        block = self._block
         setters = self._setters
-        keys = []
+        # each change's data is recorded, applied to data when it is next
+        # read: a path's latest change moved last, so applying them in order
+        # gives what applying every change in turn would. One recorded before
+        # a change that does not fit is harmless: _apply then applies the
+        # recorded ones and every change again, which gives the same data
+        pending = self._pending
         for change in changes:
             if len(change) != 2:
                 return False
@@ -249,22 +265,20 @@ class _Channel:
                 sub_spec = spec_at(self.spec, path)
                 if sub_spec is None:
                     return False
-                setter = setters[key] = compile_setter(sub_spec, ".".join(path))
-            if not setter(value, change[1]):
+                setter = setters[key] = compile_setter(
+                    sub_spec, ".".join(path), last=self._last
+                )
+            data = change[1]
+            if not setter(value, data):
                 return False
-            keys.append(key)
-        # recorded, applied to data when it is next read: a path's latest
-        # change moved last, so applying them in order gives what applying
-        # every change in turn would
-        pending = self._pending
-        for key, change in zip(keys, changes):
             pending.pop(key, None)
-            pending[key] = change[1]
+            pending[key] = data
         _post(self.pv, value)
         return True
 
     def _reopen(self, spec: Any = None) -> None:
         self._setters.clear()
+        self._last.clear()
         self.spec = spec or type_spec(self.data)
         value = to_value(self.data)
         self.type = value.type()
@@ -334,14 +348,26 @@ class _Channel:
         result = await process.post([mri, method], args)
         op.done(result_value(result, self._returns(mri, method)))
 
+    def _current(self, path: tuple[str, ...]) -> Any:
+        """The channel's data, current at ``path``: the changes the fast path
+        recorded are applied first only if one of them is at, above or below
+        ``path`` (a call's took and returned leave its returns as they are,
+        and are not applied for every call)."""
+        for key in self._pending:
+            n = min(len(key), len(path))
+            if key[:n] == path[:n]:
+                return self.data
+        return self._data
+
     def _returns(self, mri: str, method: str) -> Any:
         """The method's ``returns`` meta: from this channel's copy if it
         holds the method (kept current on the loop), else from the process."""
         try:
             if self.path == [mri, method]:
-                return self.data["meta"]["returns"]
+                return self._current(("meta", "returns"))["meta"]["returns"]
             if self.path == [mri]:
-                return self.data[method]["meta"]["returns"]
+                where = (method, "meta", "returns")
+                return self._current(where)[method]["meta"]["returns"]
         except (KeyError, TypeError):
             pass
         return self.server.process.get([mri, method, "meta", "returns"])

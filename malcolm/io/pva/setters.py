@@ -9,6 +9,15 @@ of one field (:func:`malcolm.io.pva.convert.spec_at`) into a function
 compiled instead of once per change: a structure's setter is generated
 Python source, every leaf checked and set in line. False means the data does not fit:
 the caller drops the half-filled ``Value`` and takes the general path.
+
+Given a channel's ``last`` dict (leaf name -> the value it was last set
+to), a setter leaves a scalar leaf unmarked when it is given the value it
+already holds (the same int, str or bool, a float other than zero, a list
+of str equal to it): the update carries only what changed (an alarm or a
+timeStamp's seconds mostly stay, only its nanoseconds move), which costs
+less to set, to post and to send. The dict is the channel's, shared by all
+its setters (two setters may set one leaf); whoever sets the channel's
+value another way clears it.
 """
 
 from __future__ import annotations
@@ -36,28 +45,61 @@ _EXACT: dict[str, tuple[type, ...]] = {
 }
 
 
-def compile_setter(spec: Spec, dotted: str, subset: bool = False) -> Setter:
+def compile_setter(
+    spec: Spec, dotted: str, subset: bool = False, last: dict[str, Any] | None = None
+) -> Setter:
     """A setter of the field ``dotted`` (``""``: the whole value) of type
     ``spec``; ``subset``: a structure may hold fewer fields (a MethodLog's
-    value).
+    value); ``last``: the channel's record of what its leaves hold, to leave
+    unchanged ones unmarked (see the module's docstring).
 
     A structure's setter is one generated function that checks and sets
     every leaf in line (a change's data is a few nested dicts: a timeStamp,
     an alarm, a MethodLog), with no call per field."""
     if not isinstance(spec, tuple):
-        return _leaf_setter(spec, dotted)
-    gen = _Generator()
+        return _leaf_setter(spec, dotted, last)
+    gen = _Generator(last is not None)
     body = gen.struct(spec, dotted, subset, "data", 1)
     source = "def setter(value, data):\n" + "".join(body) + "    return True\n"
     namespace: dict[str, Any] = dict(gen.constants)
+    namespace["last"] = last
     exec(compile(source, f"<setter {dotted or 'value'}>", "exec"), namespace)
     setter: Setter = namespace["setter"]
     return setter
 
 
-def _leaf_setter(spec: Spec, dotted: str) -> Setter:
+_MISSING = object()
+
+
+def _changes(data: Any, before: Any) -> bool:
+    """Whether a leaf that holds ``before`` (``MISSING``: not known) gets
+    something new from ``data`` (of a type that fits it as it is): not
+    equal, or a zero that may be a float's (0.0 and -0.0 are equal, not the
+    same). The generated setters have this in line."""
+    return (
+        before is _MISSING
+        or data != before
+        or (not data and (type(data) is float or type(before) is float))
+    )
+
+
+def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter:
     exact = _EXACT.get(spec)
     if exact is not None:
+        if last is not None:
+
+            def remembered(value: Value, data: Any) -> bool:
+                if type(data) in exact:
+                    if _changes(data, last.get(dotted, _MISSING)):
+                        value[dotted] = last[dotted] = data
+                    return True
+                if fits(spec, data):
+                    last.pop(dotted, None)
+                    value[dotted] = _fill(spec, data)
+                    return True
+                return False
+
+            return remembered
 
         def scalar(value: Value, data: Any) -> bool:
             if type(data) in exact:
@@ -72,6 +114,8 @@ def _leaf_setter(spec: Spec, dotted: str) -> Setter:
 
     def general(value: Value, data: Any) -> bool:
         if fits(spec, data):
+            if last is not None:
+                last.pop(dotted, None)
             value[dotted] = _fill(spec, data)
             return True
         return False
@@ -83,9 +127,14 @@ class _Generator:
     """Writes the lines of a structure's setter; its constants (names,
     specs, the fallbacks) go in the function's globals as ``c<n>``."""
 
-    def __init__(self) -> None:
-        self.constants: dict[str, Any] = {"fits": fits, "_fill": _fill}
+    def __init__(self, remember: bool = False) -> None:
+        self.constants: dict[str, Any] = {
+            "fits": fits,
+            "_fill": _fill,
+            "MISSING": _MISSING,
+        }
         self.names = 0
+        self.remember = remember  # with the channel's ``last`` (see the module)
 
     def const(self, value: Any) -> str:
         name = f"c{len(self.constants)}"
@@ -141,20 +190,38 @@ class _Generator:
                 f"{pad}if type({data}) is list and all(\n",
                 f"{pad}    type(x) is str for x in {data}\n",
                 f"{pad}):\n",
-                f"{pad}    value[{where}] = {data}\n",
+                *self.store(pad + "    ", where, data, f"list({data})"),
                 f"{pad}elif fits({sub}, {data}):\n",
             ]
         elif exact is not None:
             types = self.const(exact)
             lines += [
                 f"{pad}if type({data}) in {types}:\n",
-                f"{pad}    value[{where}] = {data}\n",
+                *self.store(pad + "    ", where, data, data),
                 f"{pad}elif fits({sub}, {data}):\n",
             ]
         else:
             lines.append(f"{pad}if fits({sub}, {data}):\n")
+        forget = [f"{pad}    last.pop({where}, None)\n"] if self.remember else []
         return lines + [
+            *forget,
             f"{pad}    value[{where}] = _fill({sub}, {data})\n",
             f"{pad}else:\n",
             f"{pad}    return False\n",
+        ]
+
+    def store(self, pad: str, where: str, data: str, kept: str) -> list[str]:
+        """Lines that set leaf ``where`` to ``data`` (with ``last``: unless it
+        holds that already; ``kept`` is what ``last`` keeps of it)."""
+        if not self.remember:
+            return [f"{pad}value[{where}] = {data}\n"]
+        before = self.var()
+        return [
+            f"{pad}{before} = last.get({where}, MISSING)\n",
+            f"{pad}if {before} is MISSING or {data} != {before} or (\n",
+            f"{pad}    not {data}\n",
+            f"{pad}    and (type({data}) is float or type({before}) is float)\n",
+            f"{pad}):\n",
+            f"{pad}    value[{where}] = {data}\n",
+            f"{pad}    last[{where}] = {kept}\n",
         ]
