@@ -14,8 +14,14 @@ that also:
   every child is configured at once (the Configure phase runs them
   concurrently), so the detector and the Zebra are armed before anything
   moves;
-- starts the motion last: the :class:`MotorPart`'s run waits until every
-  other child has started its run (or resumed), so no trigger is missed;
+- orders the children by their role in the triggering (``order``: the
+  trigger source, the motion, is 1, the others 0): the motion is the last
+  to start and the first to stop. Its run waits until every other child
+  has started its run (or resumed: they re-armed in their Seek), so no
+  trigger is missed; in a Seek (after a pause, or a put of
+  ``completedSteps``) the others wait until the motion's pause has ended
+  (its controller no longer produces triggers) before they stop and re-arm,
+  so no trigger of the motion's deceleration is taken as a re-done point;
 - ends the scan in Fault when its child faults, with ``health`` saying
   ``<part>: <the child's health>``; when the beamline faults, the children
   still in the middle of the scan are aborted (the motion stops).
@@ -81,6 +87,9 @@ class DeviceChildPart(RunnableChildPart):
 
     #: whether the child moves motors (its run starts after the others')
     moves = False
+    #: the child's place in the triggering: the highest (the trigger
+    #: source) starts its run last and stops first in a Seek
+    order = 0
 
     def __init__(
         self, name: str, input: str | None = None, mri: str | None = None
@@ -90,6 +99,11 @@ class DeviceChildPart(RunnableChildPart):
         self._watches: list[Any] = []
         self._child_state: Any = None
         self._abort_fut: asyncio.Future[Any] | None = None
+        #: Seek phases this part has begun and ended (every part takes part
+        #: in each, so the counts of the parts keep step)
+        self._seeks_begun = 0
+        self._seeks_ended = 0
+        self._seek_ended = asyncio.Event()
 
     @property
     def input(self) -> str:
@@ -144,11 +158,36 @@ class DeviceChildPart(RunnableChildPart):
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
+        self._seeks_begun = self._seeks_ended = 0
         self._watch(task)
         try:
             await super().configure(task, device)
         except MalcolmError as e:
             raise MalcolmError(f"{self.name}: {e}") from None
+
+    # ---- seek: the trigger source first
+    @RunnableDevice.Seek
+    async def seek(self, task: Task, device: Any) -> None:
+        """Pause the child at the beamline's step, once every sibling of a
+        higher ``order`` (the motion) has paused: a trigger still coming
+        from it would otherwise be taken as the first re-done point by a
+        detector already re-armed."""
+        self._seeks_begun += 1
+        mine = self._seeks_begun
+        try:
+            for part in self.siblings():
+                if part.order > self.order:
+                    await part.seek_ended(mine)
+            await super().seek(task, device)
+        finally:
+            self._seeks_ended = mine
+            self._seek_ended.set()
+
+    async def seek_ended(self, count: int) -> None:
+        """Wait until this part's ``count``-th Seek has ended."""
+        while self._seeks_ended < count:
+            self._seek_ended.clear()
+            await self._seek_ended.wait()
 
     # ---- run: the motion last
     @RunnableDevice.PreRun
@@ -178,7 +217,7 @@ class DeviceChildPart(RunnableChildPart):
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
         if self.moves:
-            waits = [p.started.wait() for p in self.siblings() if not p.moves]
+            waits = [p.started.wait() for p in self.siblings() if p.order < self.order]
             if waits:
                 await asyncio.gather(*waits)
         process = task.process
@@ -210,8 +249,14 @@ class DeviceChildPart(RunnableChildPart):
                 return str(health)
         return str(error)
 
+    @RunnableDevice.Reset
+    async def reset(self, task: Task, device: Any) -> None:
+        self._seeks_begun = self._seeks_ended = 0
+        await super().reset(task, device)
+
     @RunnableDevice.Abort
     async def abort(self, task: Task, device: Any) -> None:
+        self._seeks_begun = self._seeks_ended = 0
         self._abort_fut = asyncio.ensure_future(super().abort(task, device))
         await self._abort_fut
 
@@ -279,6 +324,7 @@ class MotorPart(DeviceChildPart):
     beamline's."""
 
     moves = True
+    order = 1
 
     @RunnableDevice.Init
     async def init(self, task: Task) -> None:

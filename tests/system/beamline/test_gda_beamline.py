@@ -112,6 +112,12 @@ def check_file(beamline: Beamline, name: str, generator: Value) -> np.ndarray:
         assert uid.tolist() == list(range(1, n + 1))  # nothing missing
         frames = f["/entry/det/data"]
         assert frames.shape[: len(points.shape)] == tuple(points.shape)
+        # each frame is the one its point's trigger made (the simulated
+        # detector's pixels hold that point's index + 1): none taken from
+        # the motion's deceleration at a pause as a re-done point
+        seen = np.asarray(frames[()]).reshape(n, -1)
+        wrong = [i + 1 for i in range(n) if not (seen[i] == (i + 1) % 65536).all()]
+        assert not wrong, f"frames at the wrong uniqueId: {wrong}"
         assert f["/entry/det"].attrs["NX_class"] == "NXdata"
         for axis in points.axes:
             want = np.concatenate(list(points.column("positions", axis)))
