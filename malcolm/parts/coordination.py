@@ -28,8 +28,9 @@ that also:
 
 :class:`ScanFilePart` adds ``fileDir``, ``formatName`` and ``fileTemplate``
 to configure and the ``datasets`` table, and writes the scan's one
-NeXus-style file (:mod:`malcolm.io.nexus`) after each run, and after an
-abort with what was done, in a worker thread.
+NeXus-style file (:mod:`malcolm.io.nexus`) after each run, after an
+abort with what was done, and on a Fault after a run began (from what the
+raw files hold, once the children's aborts end), in a worker thread.
 """
 
 from __future__ import annotations
@@ -306,7 +307,7 @@ class DeviceChildPart(RunnableChildPart):
             with contextlib.suppress(Exception):
                 await process.post([self.mri, "abort"])
 
-        fut = asyncio.ensure_future(stop_child())
+        fut = self._abort_fut = asyncio.ensure_future(stop_child())
         fut.add_done_callback(lambda f: f.cancelled() or f.exception())
 
 
@@ -357,15 +358,23 @@ class ScanFilePart(Part):
     ``formatName`` (default:
     the block's mri in lower case) and ``fileTemplate`` (default
     ``%s.nxs``). After PostConfigure ``datasets`` lists what the file will
-    hold; after each run (PostRunArmed, PostRunReady) and after an abort the
-    file is (re)written from the children's raw files, in a worker thread.
+    hold; after each run (PostRunArmed, PostRunReady), after an abort and
+    when the block faults after a run began the file is (re)written from the
+    children's raw files, in a worker thread.
     """
+
+    #: seconds a fault's file waits for the children's aborts to end
+    FAULT_ABORT_WAIT = 30.0
 
     def __init__(self, name: str = "file", file_dir: str = "") -> None:
         super().__init__(name)
         self.file_dir = file_dir
         self.path: Path | None = None
         self.last_result: Any = None
+        self._device: Any = None  # the scan configured
+        self._ran = False  # whether a run of it has begun
+        self._state_sub: Any = None
+        self._fault_write: asyncio.Future[Any] | None = None
 
     def setup(self, registrar: PartRegistrar) -> None:
         self._controller = registrar.controller
@@ -408,6 +417,11 @@ class ScanFilePart(Part):
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
+        self._device, self._ran = device, False
+        if self._state_sub is None:
+            self._state_sub = task.process.subscribe(
+                [self._controller.mri, "state", "value"], self._on_state, delta=False
+            )
         file_dir = device.params.get("fileDir", "")
         if not file_dir:
             self.path = None
@@ -451,7 +465,7 @@ class ScanFilePart(Part):
                 )
         self.datasets.set_value(_table(out))
 
-    def child_rows(self, task: Task, device: Any) -> list[Any]:
+    def child_rows(self, task: Task | None, device: Any) -> list[Any]:
         """The ``datasets`` rows of every device child that has them; a
         name the child gave under its raw file's name (``scan-det.data``)
         is put under the part's name in lower case (``det.data``)."""
@@ -461,8 +475,9 @@ class ScanFilePart(Part):
 
         rows = []
         for part in self.devices():
+            process = task.process if task is not None else self._controller.process
             try:
-                table = task.process.get([part.mri, "datasets", "value"])
+                table = process.get([part.mri, "datasets", "value"])
             except LookupError:
                 continue
             if not table:
@@ -474,6 +489,10 @@ class ScanFilePart(Part):
                     row = replace(row, name=group + "." + row.name[len(raw) :])
                 rows.append(row)
         return rows
+
+    @RunnableDevice.PreRun
+    async def pre_run(self, task: Task, device: Any) -> None:
+        self._ran = True
 
     @RunnableDevice.PostRunArmed
     async def post_run_armed(self, task: Task, device: Any) -> None:
@@ -490,9 +509,42 @@ class ScanFilePart(Part):
         if device.points is not None and device.completedSteps > 0:
             await self.write(task, device)
 
-    async def write(self, task: Task, device: Any) -> None:
+    # ---- a fault: the points taken are still written
+    def _on_state(self, state: Any) -> None:
+        if state != "Fault" or not self._ran or self.path is None:
+            return
+        if self._fault_write is not None and not self._fault_write.done():
+            return
+        self._fault_write = fut = asyncio.ensure_future(self._write_on_fault())
+        fut.add_done_callback(lambda f: f.cancelled() or f.exception())
+
+    async def _write_on_fault(self) -> None:
+        """Once the children's aborts (started by the device parts when the
+        beamline faulted) have ended, or after :attr:`FAULT_ABORT_WAIT`,
+        write the file from what the raw files hold; what cannot be read
+        is logged and named in the file's ``problems`` attribute."""
+        device = self._device
+        self._ran = False
+        await asyncio.sleep(0)  # the device parts start their children's aborts
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(
+                asyncio.gather(*(p.aborted() for p in self.devices())),
+                self.FAULT_ABORT_WAIT,
+            )
+        health = self._controller.block.health.value
+        try:
+            await self.write(None, device, {"fault": str(health)})
+        except Exception as e:  # nothing left to fault: say so, never raise
+            log.error(
+                "%s: the file of the faulted scan %s: %s", device.mri, self.path, e
+            )
+
+    async def write(
+        self, task: Task | None, device: Any, extra: dict[str, Any] | None = None
+    ) -> None:
         """Assemble the file in a worker thread; problems are logged (the
-        rest is written) and kept in ``last_result``."""
+        rest is written), put in the file's ``problems`` attribute and kept
+        in ``last_result``. ``extra`` attributes go on ``/entry``."""
         if self.path is None or device.points is None:
             return
         from malcolm.io.nexus import assemble
@@ -501,6 +553,7 @@ class ScanFilePart(Part):
         points = device.points.copy()
         path = self.path
         attrs = {"scan_mri": device.mri, "completed_steps": device.completedSteps}
+        attrs.update(extra or {})
 
         def work() -> Any:
             import numpy as np  # loaded with the first file, not at start-up

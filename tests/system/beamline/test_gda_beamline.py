@@ -231,6 +231,7 @@ def test_ioc_killed_mid_run_faults_naming_the_child(beamline, ctx):
     health = ctx.get(f"{SCAN}.health", timeout=10)["value"]
     assert health.split(":")[0] in ("DET", "MOTORS"), health
     assert alive(beamline.child_pids()["Zebra2"])
+    check_fault_file(beamline, "killed", generator, health)
     beamline.restart_ioc()
     # the hardware blocks say when their channels are connected again
     hardware = ["DET:DRV", "DET:POS", "DET:HDF", "MOTORS:traj", "MOTORS:a", "MOTORS:b"]
@@ -246,6 +247,39 @@ def test_ioc_killed_mid_run_faults_naming_the_child(beamline, ctx):
     call(ctx, "run")
     assert state(ctx) == "Finished"
     check_file(beamline, "after", small)
+
+
+def check_fault_file(
+    beamline: Beamline, name: str, generator: Value, health: str
+) -> None:
+    """The faulted scan's file is written from what the raw files hold: the
+    points taken before the fault (at least the 5 seen) are in it, a raw
+    file the lost IOC left unreadable is named in ``problems``."""
+    path = beamline.file_dir / f"{name}.nxs"
+    deadline = time.monotonic() + 60  # a ceiling for "it is written"
+    while not path.exists():
+        assert time.monotonic() < deadline, f"no {path} after the fault"
+        time.sleep(0.1)
+    n = points_of(generator).size
+    with h5py.File(path, "r") as f:
+        entry = f["/entry"]
+        assert entry.attrs["fault"] == health
+        uid = entry["uniqueid"][()].reshape(-1)
+        taken = int((uid > 0).sum())
+        assert uid[:5].tolist() == [1, 2, 3, 4, 5]  # the rows taken first
+        assert 5 <= taken < n
+        # the Zebra (still alive) wrote its rows of those points
+        for dataset in entry["zebra"].values():
+            assert dataset.shape[: len(points_of(generator).shape)] == tuple(
+                points_of(generator).shape
+            )
+        problems = [str(p) for p in entry.attrs.get("problems", [])]
+        if "det" in entry:
+            frames = entry["det/data"][()].reshape(n, -1)
+            got = [i for i in range(n) if uid[i] and frames[i].any()]
+            assert got and all((frames[i] == i + 1).all() for i in got)
+        else:  # the IOC's file, cut short, is named
+            assert any(f"{name}-det.h5" in p for p in problems), problems
 
 
 def test_a_bad_generator_is_refused_and_serving_goes_on(ctx):
