@@ -12,6 +12,8 @@ from __future__ import annotations
 import os
 import queue
 import signal
+import subprocess
+import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -247,6 +249,46 @@ def test_ioc_killed_mid_run_faults_naming_the_child(beamline, ctx):
     call(ctx, "run")
     assert state(ctx) == "Finished"
     check_file(beamline, "after", small)
+
+
+def test_frames_that_stop_coming_fault_naming_det_and_the_frame(beamline, ctx):
+    """A second Channel Access client cuts the driver's array callbacks
+    mid-run: the motion and the Zebra finish, no frame reaches the writer
+    again, and the detector's frame timeout (its default: 3 x 0.05 s + 10 s)
+    ends the scan in Fault naming DET and the frame; the file holds the
+    points taken."""
+    from malcolm.sim.beamline_ioc import ca_environment
+
+    generator = compound(line("y", 3, 0, 1, False), line("x", 20, 0, 2, True))
+    ready(ctx)
+    call(ctx, "configure", scan_args(generator, ["x", "y"], "stalled"))
+    cut = (
+        "import epics; epics.caput('BLT:CAM:ArrayCallbacks', 0, wait=True,"
+        " timeout=10) or exit(1)"
+    )
+    with ThreadPoolExecutor(1) as pool:
+        running = pool.submit(call, ctx, "run")
+        deadline = time.monotonic() + 60
+        while ctx.get(f"{SCAN}.completedSteps", timeout=10)["value"] < 5:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        subprocess.run(
+            [sys.executable, "-c", cut],
+            env={**os.environ, **ca_environment(beamline.ca_port)},
+            check=True,
+            timeout=30,
+        )
+        # a ceiling for "it happens": the bound is 10.15 s after the last frame
+        with pytest.raises(RemoteError, match="no frame"):
+            running.result(timeout=60)
+    wait_state(ctx, "Fault", timeout=30)
+    health = ctx.get(f"{SCAN}.health", timeout=10)["value"]
+    assert health.startswith("DET: "), health
+    assert "BLT:DET: no frame " in health and "within 10.15 s of the last" in health
+    check_fault_file(beamline, "stalled", generator, health)
+    with h5py.File(beamline.file_dir / "stalled.nxs", "r") as f:
+        assert "det" in f["/entry"]  # the IOC is alive: its raw file is read
+    ready(ctx)  # reset: the next configure turns the callbacks on again
 
 
 def check_fault_file(
