@@ -27,6 +27,7 @@ from malcolm.scan import gda, scan_points
 from .scans import run
 
 ORDER: list[str] = []  # which device started its run when
+SEEKS: list[str] = []  # "<device> <begin|end>" of each device's Seek
 
 
 class FakeDevicePart(Part):
@@ -80,6 +81,13 @@ class FakeDevicePart(Part):
         finally:
             self.write()
 
+    @RunnableDevice.Seek
+    async def seek(self) -> None:
+        SEEKS.append(f"{self.name} begin")
+        # the motion takes a while to stop (it decelerates)
+        await asyncio.sleep(0.05 if self.name == "motors" else 0.001)
+        SEEKS.append(f"{self.name} end")
+
     @RunnableDevice.Abort
     async def abort(self) -> None:
         self.write()
@@ -115,6 +123,7 @@ async def make(tmp_path: Path) -> tuple[Process, dict[str, FakeDevicePart]]:
     build_block(process, expanded)
     await process.start()
     ORDER.clear()
+    SEEKS.clear()
     return process, devices
 
 
@@ -173,6 +182,10 @@ def test_pause_seek_resume_gives_one_row_per_point(tmp_path):
         assert p.get(["BL", "state", "value"]) == "Finished"
         # the motion started after the detector and the Zebra, both times
         assert ORDER[2] == "motors" and ORDER[-1] == "motors", ORDER
+        # and stopped first: its pause ended before the others' began
+        assert SEEKS[:2] == ["motors begin", "motors end"], SEEKS
+        assert sorted(SEEKS[2:]) == ["det begin", "det end", "zebra begin",
+                                     "zebra end"]  # fmt: skip
         det = devices["DET"]
         assert len(det.rows) > 41  # points 10.. were done twice
         with h5py.File(tmp_path / "s2.nxs", "r") as f:
@@ -200,6 +213,15 @@ def test_a_child_fault_ends_the_scan_in_fault_naming_it(tmp_path):
         assert p.get(["BL", "state", "value"]) == "Fault"
         assert p.get(["BL", "health", "value"]).startswith("ZEBRA: ")
         assert "lost zebra at step 5" in p.get(["BL", "health", "value"])
+        # the file is written from the rows taken before the fault
+        for _ in range(500):
+            if (tmp_path / "bl.nxs").exists():
+                break
+            await asyncio.sleep(0.01)
+        with h5py.File(tmp_path / "bl.nxs", "r") as f:
+            assert f["/entry"].attrs["fault"].startswith("ZEBRA: ")
+            uid = f["/entry/uniqueid"][()].tolist()
+            assert uid[:5] == [1, 2, 3, 4, 5] and 0 in uid
         # the others were stopped, not left running
         for _ in range(100):
             if p.get(["BL:MOTORS", "state", "value"]) == "Aborted":
