@@ -45,6 +45,7 @@ from typing import Any
 from malcolm.core import (
     BadValueError,
     MalcolmError,
+    NumberMeta,
     StringMeta,
 )
 from malcolm.fsm import RunnableDevice
@@ -312,7 +313,31 @@ class DeviceChildPart(RunnableChildPart):
 
 
 class DetectorPart(DeviceChildPart):
-    """A detector manager in the scan: armed at configure, waits for frames."""
+    """A detector manager in the scan: armed at configure, waits for frames.
+
+    Adds ``frameTimeout`` to the beamline's configure (0: the detector's
+    default), handed to a detector whose configure takes it: in External
+    mode its run faults when no frame comes for that long (a lost trigger).
+    """
+
+    def setup(self, registrar: PartRegistrar) -> None:
+        super().setup(registrar)
+        registrar.add_configure_arg(
+            "frameTimeout",
+            NumberMeta(
+                "float64",
+                "Seconds without a new frame before the detector faults (0:"
+                " the detector's default, 3 x the longest point + 10 s)",
+            ),
+            0.0,
+        )
+
+    def _child_params(self, device: Any) -> dict[str, Any]:
+        params = super()._child_params(device)
+        timeout = device.params.get("frameTimeout")
+        if timeout and "frameTimeout" in self.child_takes():
+            params["frameTimeout"] = timeout
+        return params
 
 
 class ZebraPart(DeviceChildPart):

@@ -47,6 +47,8 @@ class FakeDevicePart(Part):
         registrar.add_configure_arg("formatName", StringMeta("name"), self.name)
         self.datasets = registrar.add_attribute("datasets", datasets_meta())
         self.count = registrar.add_attribute("rowsWritten", NumberMeta("int32"), 0)
+        if self.kind == "primary":  # as the DetectorManager does
+            registrar.add_configure_arg("frameTimeout", NumberMeta("float64"), 0.0)
         if self.kind == "position_value":
             registrar.controller.block.simultaneousAxes.set_value(["x", "y"])
 
@@ -144,10 +146,14 @@ def test_configure_hands_each_child_its_arguments(tmp_path):
         assert list(p.get(["BL", "simultaneousAxes", "value"])) == ["x", "y"]
         defaults = p.get(["BL", "configure", "meta", "defaults"])
         assert defaults["fileTemplate"] == "%s.nxs" and defaults["fileDir"] == ""
+        assert defaults["frameTimeout"] == 0.0
         await p.post(["BL", "configure"], {"generator": spiral(),
                      "axesToMove": ["x", "y"], "fileDir": str(tmp_path),
-                     "formatName": "s1"})  # fmt: skip
+                     "formatName": "s1", "frameTimeout": 2.5})  # fmt: skip
         assert p.get(["BL", "state", "value"]) == "Armed"
+        # the detector alone takes the frame timeout
+        assert devices["DET"].got["frameTimeout"] == 2.5
+        assert "frameTimeout" not in devices["MOTORS"].got
         for name, part in devices.items():
             assert part.got["fileDir"] == str(tmp_path)
             assert part.got["formatName"] == f"s1-{name.lower()}"

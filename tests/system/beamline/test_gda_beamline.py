@@ -153,6 +153,7 @@ def test_gda_reads(ctx):
     configure = ctx.get(f"{SCAN}.configure", timeout=10)
     defaults = to_dict(configure["meta.defaults"])
     assert defaults["fileTemplate"] == "%s.nxs"
+    assert defaults["frameTimeout"] == 0.0  # the detector's own bound
     assert defaults["fileDir"]  # malcolm beamline --file-dir
     assert configure["meta.takes.required"] == ["generator"]
     datasets = ctx.get(f"{SCAN}.datasets", timeout=10)
