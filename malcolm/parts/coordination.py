@@ -168,12 +168,15 @@ class DeviceChildPart(RunnableChildPart):
             self.started.set()
 
     def allowed_now(self, method: str) -> bool:
+        """Whether the child's ``method`` may be called now (its meta's
+        ``writeable``, read from the child's block: nothing is copied)."""
         controller = self._controller
         assert controller is not None and controller.process is not None
         try:
-            return bool(controller.process.get([self.mri, method, "meta", "writeable"]))
+            field = controller.process.get_block(self.mri)[method]
         except LookupError:
             return False
+        return bool(field.meta.writeable)
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
