@@ -169,14 +169,11 @@ class DeviceChildPart(RunnableChildPart):
 
     def allowed_now(self, method: str) -> bool:
         """Whether the child's ``method`` may be called now (its meta's
-        ``writeable``, read from the child's block: nothing is copied)."""
-        controller = self._controller
-        assert controller is not None and controller.process is not None
+        ``writeable``, read in place as :meth:`allowed` reads it)."""
         try:
-            field = controller.process.get_block(self.mri)[method]
-        except LookupError:
+            return bool(self._child_method(method).meta.writeable)
+        except (LookupError, AttributeError):
             return False
-        return bool(field.meta.writeable)
 
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
