@@ -36,11 +36,13 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import math
 import os
 import sys
 import tempfile
 import time
+from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
@@ -200,7 +202,14 @@ async def smallest_exposure(process: Any, mri: str, want: float) -> float:
     return float(validated["generator"]["duration"])
 
 
-async def beamline_figures(points: int, repeats: int, want: float) -> dict[str, Any]:
+@contextlib.asynccontextmanager
+async def beamline_process(
+    process_file: Path | None = None,
+) -> AsyncIterator[Any]:
+    """The simulated IOC and Zebra2 as subprocesses and the beamline process
+    (``process_file``, default :data:`BEAMLINE_PROCESS_FILE` or
+    ``$BEAMLINE_PROCESS``) started in this one, as ``malcolm beamline``
+    does; all stopped after."""
     from malcolm.beamline import (
         BEAMLINE_PROCESS_FILE,
         SimZebra2,
@@ -209,49 +218,53 @@ async def beamline_figures(points: int, repeats: int, want: float) -> dict[str, 
     )
     from malcolm.sim.beamline_ioc import SimIOC
 
+    if process_file is None:
+        process_file = Path(os.environ.get("BEAMLINE_PROCESS", BEAMLINE_PROCESS_FILE))
     ioc = SimIOC(PREFIX)
     zebra = SimZebra2()
     ioc.start()
     try:
         zebra.start()
-        defines = beamline_defines(PREFIX, zebra, "")
-        process = build_beamline(
-            Path(os.environ.get("BEAMLINE_PROCESS", BEAMLINE_PROCESS_FILE)), defines
-        )
+        process = build_beamline(process_file, beamline_defines(PREFIX, zebra, ""))
         await process.start()
         try:
-            with tempfile.TemporaryDirectory() as file_dir:
-                exposure = await smallest_exposure(process, SCAN, want)
-                figures = await measure_layers(
-                    process,
-                    SCAN,
-                    points,
-                    repeats,
-                    exposure,
-                    sustained=True,
-                    fileDir=file_dir,
-                )
-                # the detector triggered externally waits for the motion:
-                # it has no run alone
-                figures["devices"] = {
-                    mri: await measure_layers(
-                        process,
-                        mri,
-                        points,
-                        repeats,
-                        exposure,
-                        runs=not mri.endswith(":DET"),
-                        fileDir=file_dir,
-                    )
-                    for mri in DEVICES
-                }
-            figures["exposure"] = exposure
-            return figures
+            yield process
         finally:
             await process.stop()
     finally:
         zebra.stop()
         ioc.stop()
+
+
+async def beamline_figures(points: int, repeats: int, want: float) -> dict[str, Any]:
+    async with beamline_process() as process:
+        with tempfile.TemporaryDirectory() as file_dir:
+            exposure = await smallest_exposure(process, SCAN, want)
+            figures = await measure_layers(
+                process,
+                SCAN,
+                points,
+                repeats,
+                exposure,
+                sustained=True,
+                fileDir=file_dir,
+            )
+            # the detector triggered externally waits for the motion:
+            # it has no run alone
+            figures["devices"] = {
+                mri: await measure_layers(
+                    process,
+                    mri,
+                    points,
+                    repeats,
+                    exposure,
+                    runs=not mri.endswith(":DET"),
+                    fileDir=file_dir,
+                )
+                for mri in DEVICES
+            }
+        figures["exposure"] = exposure
+        return figures
 
 
 async def demo_figures(points: int, repeats: int, exposure: float) -> dict[str, Any]:

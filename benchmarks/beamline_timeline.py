@@ -22,7 +22,13 @@ import time
 from collections import Counter
 from typing import Any
 
-from benchmarks.beamline import PREFIX, grid, smallest_exposure, spiral
+from benchmarks.beamline import (
+    PREFIX,
+    beamline_process,
+    grid,
+    smallest_exposure,
+    spiral,
+)
 
 WATCHED = {
     "SCAN": ("state",),
@@ -36,31 +42,11 @@ WATCHED = {
 
 
 async def timeline(points: int, want: float, mri: str, shape: str) -> None:
-    from malcolm.beamline import (
-        BEAMLINE_PROCESS_FILE,
-        SimZebra2,
-        beamline_defines,
-        build_beamline,
-    )
-    from malcolm.sim.beamline_ioc import SimIOC
+    from malcolm.beamline import BEAMLINE_PROCESS_FILE
 
-    ioc = SimIOC(PREFIX)
-    zebra = SimZebra2()
-    ioc.start()
-    try:
-        zebra.start()
-        process = build_beamline(
-            BEAMLINE_PROCESS_FILE, beamline_defines(PREFIX, zebra, "")
-        )
-        await process.start()
-        try:
-            with tempfile.TemporaryDirectory() as file_dir:
-                await one_run(process, points, want, mri, file_dir, shape)
-        finally:
-            await process.stop()
-    finally:
-        zebra.stop()
-        ioc.stop()
+    async with beamline_process(BEAMLINE_PROCESS_FILE) as process:
+        with tempfile.TemporaryDirectory() as file_dir:
+            await one_run(process, points, want, mri, file_dir, shape)
 
 
 async def one_run(

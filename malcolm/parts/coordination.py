@@ -209,11 +209,11 @@ class DeviceChildPart(RunnableChildPart):
             self.started.set()
 
     def allowed_now(self, method: str) -> bool:
-        controller = self._controller
-        assert controller is not None and controller.process is not None
+        """Whether the child's ``method`` may be called now (its meta's
+        ``writeable``, read in place as :meth:`allowed` reads it)."""
         try:
-            return bool(controller.process.get([self.mri, method, "meta", "writeable"]))
-        except LookupError:
+            return bool(self._child_method(method).meta.writeable)
+        except (LookupError, AttributeError):
             return False
 
     @RunnableDevice.Run

@@ -415,21 +415,23 @@ class DetectorManagerPart(Part):
             puts.update(
                 {hdf.numCapture: frames, hdf.append: not fresh, hdf.lazyOpen: not fresh}
             )
-        # the settings go while the plugin is cleared and loaded (the
-        # positions wait for the clear)
-        # (a failure of the clear or the load is raised: the settings' own
-        # puts end by themselves, their errors retrieved by the task)
-        settings = task.put_async(self._changed(puts))
-        await task.put(pos.delete, True)
-        self._loaded = start
-        await self._load(task, min(end, start + self.preload))
-        await task.wait_all(settings)
-        waits = [task.when_matches(pos.running, True, timeout=SETTLE_TIMEOUT)]
-        self._busy["plugin"] = task.put_async(pos.start, True)
+        # Two chains at once: the writer's settings, then its capture (the
+        # IOC makes the file); the plugin cleared, loaded, then started once
+        # the other settings are in. A failure of either is raised (the other
+        # chain's puts end by themselves, their errors retrieved by the task).
+        changed = self._changed(puts)
+        writer = self.mris["writer"] if self._file else None
+        writer_puts = {v: x for v, x in changed.items() if v.mri == writer}
+        other_puts = {v: x for v, x in changed.items() if v.mri != writer}
+        chains = [asyncio.ensure_future(self._arm_plugin(task, start, end, other_puts))]
         if self._file:
-            self._busy["writer"] = task.put_async(hdf.capture, True)
-            waits.append(task.when_matches(hdf.capture, True, timeout=SETTLE_TIMEOUT))
-        await self._until_armed(waits)
+            chains.append(asyncio.ensure_future(self._arm_writer(task, writer_puts)))
+        try:
+            await asyncio.gather(*chains)
+        finally:  # one failed (or the arming was cancelled): the other ends too
+            for chain in chains:
+                chain.cancel()
+            await asyncio.gather(*chains, return_exceptions=True)
         if self.external:
             self._busy["driver"] = task.put_async(drv.acquire, "Acquire")
             await self._until_armed(
@@ -440,6 +442,29 @@ class DetectorManagerPart(Part):
                 ]
             )
         self._armed = True
+
+    async def _arm_plugin(
+        self, task: Task, start: int, end: int, settings: dict[Any, Any]
+    ) -> None:
+        """Clear and load the position plugin while ``settings`` go, then
+        start it (once its positions and the driver's settings are in)."""
+        pos = self.pos
+        puts = task.put_async(settings)
+        await task.put(pos.delete, True)
+        self._loaded = start
+        await self._load(task, min(end, start + self.preload))
+        await task.wait_all(puts)
+        running = task.when_matches(pos.running, True, timeout=SETTLE_TIMEOUT)
+        self._busy["plugin"] = task.put_async(pos.start, True)
+        await self._until_armed([running])
+
+    async def _arm_writer(self, task: Task, settings: dict[Any, Any]) -> None:
+        """Set the writer up, then make it capture (the IOC opens the file)."""
+        hdf = self.hdf
+        await task.put(settings)
+        capturing = task.when_matches(hdf.capture, True, timeout=SETTLE_TIMEOUT)
+        self._busy["writer"] = task.put_async(hdf.capture, True)
+        await self._until_armed([capturing])
 
     async def _until_armed(self, waits: list[Any]) -> None:
         """Wait for ``waits``; a busy put that ends first (it failed, or the

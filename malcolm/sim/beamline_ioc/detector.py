@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from softioc import builder
 
-from .pace import LATE_SLICE, MIN_PERIOD, Throttled
+from .pace import MIN_PERIOD, Schedule, Throttled
 from .plugins import (
     TEXT,
     HDFWriter,
@@ -174,18 +174,12 @@ class Detector(Stoppable):
             self.acquire_rbv.set(0)
 
     async def _internal(self, total: int | None) -> None:
-        loop = asyncio.get_running_loop()
-        deadline = yielded = loop.time()
+        schedule = Schedule()
+        deadline = schedule.start
         made = 0
         while total is None or made < total:
             deadline += max(self.exposure.get(), self.period.get(), MIN_PERIOD)
-            now = loop.time()
-            if deadline > now:
-                await asyncio.sleep(deadline - now)
-                yielded = loop.time()
-            elif now - yielded > LATE_SLICE:  # catching up: let others run
-                await asyncio.sleep(0)
-                yielded = loop.time()
+            await schedule.until(deadline)
             if self.stopping(self.acquire):
                 break
             made += 1

@@ -62,7 +62,7 @@ from collections.abc import Callable
 import numpy as np
 from softioc import builder
 
-from .pace import LATE_SLICE, Throttled
+from .pace import Schedule, Throttled
 from .trapezoid import move_time, moved_by
 
 TICK = 0.01  # seconds between position updates of a move
@@ -282,20 +282,12 @@ class Trajectory:
         due = np.cumsum(times, dtype=np.int64).tolist()  # us from the start
         points = indices.tolist()
         listeners = self.point_listeners
-        loop = asyncio.get_running_loop()
-        start = loop.time()
-        yielded = start
+        schedule = Schedule()
         reached = 0
         try:
             for i, at in enumerate(due):
-                deadline = start + at / 1e6
-                now = loop.time()
-                if deadline > now:
-                    await asyncio.sleep(deadline - now)
-                    yielded = loop.time()
-                elif now - yielded > LATE_SLICE:  # catching up: let others run
-                    await asyncio.sleep(0)
-                    yielded = loop.time()
+                deadline = schedule.start + at / 1e6
+                await schedule.until(deadline)
                 if self.aborted and deadline > self.abort_at + self.stop_time():
                     self.exec_status.set(2)
                     return

@@ -35,7 +35,7 @@ import asyncio
 import math
 from typing import Any
 
-__all__ = ["LATE_SLICE", "MIN_PERIOD", "STATUS_PERIOD", "Throttled"]
+__all__ = ["LATE_SLICE", "MIN_PERIOD", "STATUS_PERIOD", "Schedule", "Throttled"]
 
 #: seconds between two posts of a status record (a 200 Hz status poll)
 STATUS_PERIOD = 0.005
@@ -44,6 +44,27 @@ MIN_PERIOD = 0.0001
 #: seconds a late trajectory or acquisition works through due points
 #: before it yields to the IOC's other work
 LATE_SLICE = 0.002
+
+
+class Schedule:
+    """Waits for points on an absolute schedule (on the running loop): a
+    point due later is slept for; points already due are done at once, with
+    a yield to the IOC's other work every :data:`LATE_SLICE`, so lateness
+    is caught up, never accumulated."""
+
+    def __init__(self) -> None:
+        self.loop = asyncio.get_running_loop()
+        self.start = self._yielded = self.loop.time()
+
+    async def until(self, deadline: float) -> None:
+        """Return at ``deadline`` (loop time) or, if it has passed, now."""
+        now = self.loop.time()
+        if deadline > now:
+            await asyncio.sleep(deadline - now)
+            self._yielded = self.loop.time()
+        elif now - self._yielded > LATE_SLICE:  # catching up: let others run
+            await asyncio.sleep(0)
+            self._yielded = self.loop.time()
 
 
 class Throttled:

@@ -37,13 +37,13 @@ from __future__ import annotations
 
 import asyncio
 import xml.etree.ElementTree as ET
-from collections import deque
 from typing import Any
 
 import numpy as np
 from softioc import builder
 
 from .pace import Throttled
+from .positions import PositionBuffer, parse_positions
 
 TEXT = 65536  # bytes of a char waveform
 FLUSH_ROWS = 200  # frames the writer keeps before writing them
@@ -120,7 +120,7 @@ class PositionPlugin(Stoppable):
     def __init__(self, prefix: str) -> None:
         builder.SetDeviceName(f"{prefix}:POS")
         super().__init__()
-        self.buffer: deque[dict[str, str]] = deque()
+        self.buffer = PositionBuffer()
         self.qty = Throttled(builder.longIn("Qty", initial_value=0))
         self.index = Throttled(builder.longIn("Index", initial_value=0))
         self.id_start, _ = demand("IDStart", builder.longOut, builder.longIn, 1)
@@ -166,13 +166,11 @@ class PositionPlugin(Stoppable):
 
     def _load(self, text: str) -> None:
         try:
-            root = ET.fromstring(text)
+            parse_positions(text, self.buffer)
         except ET.ParseError:
             self.qty.set(len(self.buffer))
             self.qty.flush(severity=2, alarm=7)  # MAJOR, STATE
             return
-        for position in root.iter("position"):
-            self.buffer.append(dict(position.attrib))
         self.qty.set(len(self.buffer))
         self.qty.flush(severity=0, alarm=0)  # posted now, any alarm cleared
 
