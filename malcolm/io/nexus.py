@@ -25,7 +25,10 @@ each row's point: index + 1, 0 = not a scan point).
 - demand positions from the scan's points where no device gave them
   (``/entry/<axis>/value_set``);
 - ``/entry/uniqueid``: ``index + 1`` where the primary datasets (else any)
-  have a row, 0 elsewhere.
+  have a row, 0 elsewhere;
+- a row that cannot be read (a raw file missing, unreadable or cut short
+  by a lost IOC) is left out and named in ``/entry``'s ``problems``
+  attribute (a list of strings), as in the result's ``problems``.
 
 Reading is done with h5py in the caller's thread: call it from a worker
 thread (``asyncio.to_thread``), never on the loop. The file is written to a
@@ -234,6 +237,8 @@ def assemble(
                         "/entry/uniqueid",
                     )
                 )
+            if result.problems:
+                entry.attrs["problems"] = list(result.problems)
             present = present_primary if present_primary.any() else present_any
             uid = np.where(present, np.arange(1, npoints + 1), 0).astype(np.int32)
             entry.create_dataset("uniqueid", data=uid.reshape(shape))

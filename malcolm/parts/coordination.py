@@ -14,16 +14,23 @@ that also:
   every child is configured at once (the Configure phase runs them
   concurrently), so the detector and the Zebra are armed before anything
   moves;
-- starts the motion last: the :class:`MotorPart`'s run waits until every
-  other child has started its run (or resumed), so no trigger is missed;
+- orders the children by their role in the triggering (``order``: the
+  trigger source, the motion, is 1, the others 0): the motion is the last
+  to start and the first to stop. Its run waits until every other child
+  has started its run (or resumed: they re-armed in their Seek), so no
+  trigger is missed; in a Seek (after a pause, or a put of
+  ``completedSteps``) the others wait until the motion's pause has ended
+  (its controller no longer produces triggers) before they stop and re-arm,
+  so no trigger of the motion's deceleration is taken as a re-done point;
 - ends the scan in Fault when its child faults, with ``health`` saying
   ``<part>: <the child's health>``; when the beamline faults, the children
   still in the middle of the scan are aborted (the motion stops).
 
 :class:`ScanFilePart` adds ``fileDir``, ``formatName`` and ``fileTemplate``
 to configure and the ``datasets`` table, and writes the scan's one
-NeXus-style file (:mod:`malcolm.io.nexus`) after each run, and after an
-abort with what was done, in a worker thread.
+NeXus-style file (:mod:`malcolm.io.nexus`) after each run, after an
+abort with what was done, and on a Fault after a run began (from what the
+raw files hold, once the children's aborts end), in a worker thread.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from typing import Any
 from malcolm.core import (
     BadValueError,
     MalcolmError,
+    NumberMeta,
     StringMeta,
 )
 from malcolm.fsm import RunnableDevice
@@ -81,6 +89,9 @@ class DeviceChildPart(RunnableChildPart):
 
     #: whether the child moves motors (its run starts after the others')
     moves = False
+    #: the child's place in the triggering: the highest (the trigger
+    #: source) starts its run last and stops first in a Seek
+    order = 0
 
     def __init__(
         self, name: str, input: str | None = None, mri: str | None = None
@@ -90,6 +101,11 @@ class DeviceChildPart(RunnableChildPart):
         self._watches: list[Any] = []
         self._child_state: Any = None
         self._abort_fut: asyncio.Future[Any] | None = None
+        #: Seek phases this part has begun and ended (every part takes part
+        #: in each, so the counts of the parts keep step)
+        self._seeks_begun = 0
+        self._seeks_ended = 0
+        self._seek_ended = asyncio.Event()
 
     @property
     def input(self) -> str:
@@ -144,11 +160,36 @@ class DeviceChildPart(RunnableChildPart):
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
+        self._seeks_begun = self._seeks_ended = 0
         self._watch(task)
         try:
             await super().configure(task, device)
         except MalcolmError as e:
             raise MalcolmError(f"{self.name}: {e}") from None
+
+    # ---- seek: the trigger source first
+    @RunnableDevice.Seek
+    async def seek(self, task: Task, device: Any) -> None:
+        """Pause the child at the beamline's step, once every sibling of a
+        higher ``order`` (the motion) has paused: a trigger still coming
+        from it would otherwise be taken as the first re-done point by a
+        detector already re-armed."""
+        self._seeks_begun += 1
+        mine = self._seeks_begun
+        try:
+            for part in self.siblings():
+                if part.order > self.order:
+                    await part.seek_ended(mine)
+            await super().seek(task, device)
+        finally:
+            self._seeks_ended = mine
+            self._seek_ended.set()
+
+    async def seek_ended(self, count: int) -> None:
+        """Wait until this part's ``count``-th Seek has ended."""
+        while self._seeks_ended < count:
+            self._seek_ended.clear()
+            await self._seek_ended.wait()
 
     # ---- run: the motion last
     @RunnableDevice.PreRun
@@ -178,7 +219,7 @@ class DeviceChildPart(RunnableChildPart):
     @RunnableDevice.Run
     async def run(self, task: Task, device: Any) -> None:
         if self.moves:
-            waits = [p.started.wait() for p in self.siblings() if not p.moves]
+            waits = [p.started.wait() for p in self.siblings() if p.order < self.order]
             if waits:
                 await asyncio.gather(*waits)
         process = task.process
@@ -210,8 +251,14 @@ class DeviceChildPart(RunnableChildPart):
                 return str(health)
         return str(error)
 
+    @RunnableDevice.Reset
+    async def reset(self, task: Task, device: Any) -> None:
+        self._seeks_begun = self._seeks_ended = 0
+        await super().reset(task, device)
+
     @RunnableDevice.Abort
     async def abort(self, task: Task, device: Any) -> None:
+        self._seeks_begun = self._seeks_ended = 0
         self._abort_fut = asyncio.ensure_future(super().abort(task, device))
         await self._abort_fut
 
@@ -261,12 +308,36 @@ class DeviceChildPart(RunnableChildPart):
             with contextlib.suppress(Exception):
                 await process.post([self.mri, "abort"])
 
-        fut = asyncio.ensure_future(stop_child())
+        fut = self._abort_fut = asyncio.ensure_future(stop_child())
         fut.add_done_callback(lambda f: f.cancelled() or f.exception())
 
 
 class DetectorPart(DeviceChildPart):
-    """A detector manager in the scan: armed at configure, waits for frames."""
+    """A detector manager in the scan: armed at configure, waits for frames.
+
+    Adds ``frameTimeout`` to the beamline's configure (0: the detector's
+    default), handed to a detector whose configure takes it: in External
+    mode its run faults when no frame comes for that long (a lost trigger).
+    """
+
+    def setup(self, registrar: PartRegistrar) -> None:
+        super().setup(registrar)
+        registrar.add_configure_arg(
+            "frameTimeout",
+            NumberMeta(
+                "float64",
+                "Seconds without a new frame before the detector faults (0:"
+                " the detector's default, 3 x the longest point + 10 s)",
+            ),
+            0.0,
+        )
+
+    def _child_params(self, device: Any) -> dict[str, Any]:
+        params = super()._child_params(device)
+        timeout = device.params.get("frameTimeout")
+        if timeout and "frameTimeout" in self.child_takes():
+            params["frameTimeout"] = timeout
+        return params
 
 
 class ZebraPart(DeviceChildPart):
@@ -279,6 +350,7 @@ class MotorPart(DeviceChildPart):
     beamline's."""
 
     moves = True
+    order = 1
 
     @RunnableDevice.Init
     async def init(self, task: Task) -> None:
@@ -311,15 +383,23 @@ class ScanFilePart(Part):
     ``formatName`` (default:
     the block's mri in lower case) and ``fileTemplate`` (default
     ``%s.nxs``). After PostConfigure ``datasets`` lists what the file will
-    hold; after each run (PostRunArmed, PostRunReady) and after an abort the
-    file is (re)written from the children's raw files, in a worker thread.
+    hold; after each run (PostRunArmed, PostRunReady), after an abort and
+    when the block faults after a run began the file is (re)written from the
+    children's raw files, in a worker thread.
     """
+
+    #: seconds a fault's file waits for the children's aborts to end
+    FAULT_ABORT_WAIT = 30.0
 
     def __init__(self, name: str = "file", file_dir: str = "") -> None:
         super().__init__(name)
         self.file_dir = file_dir
         self.path: Path | None = None
         self.last_result: Any = None
+        self._device: Any = None  # the scan configured
+        self._ran = False  # whether a run of it has begun
+        self._state_sub: Any = None
+        self._fault_write: asyncio.Future[Any] | None = None
 
     def setup(self, registrar: PartRegistrar) -> None:
         self._controller = registrar.controller
@@ -362,6 +442,11 @@ class ScanFilePart(Part):
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:
+        self._device, self._ran = device, False
+        if self._state_sub is None:
+            self._state_sub = task.process.subscribe(
+                [self._controller.mri, "state", "value"], self._on_state, delta=False
+            )
         file_dir = device.params.get("fileDir", "")
         if not file_dir:
             self.path = None
@@ -405,7 +490,7 @@ class ScanFilePart(Part):
                 )
         self.datasets.set_value(_table(out))
 
-    def child_rows(self, task: Task, device: Any) -> list[Any]:
+    def child_rows(self, task: Task | None, device: Any) -> list[Any]:
         """The ``datasets`` rows of every device child that has them; a
         name the child gave under its raw file's name (``scan-det.data``)
         is put under the part's name in lower case (``det.data``)."""
@@ -415,8 +500,9 @@ class ScanFilePart(Part):
 
         rows = []
         for part in self.devices():
+            process = task.process if task is not None else self._controller.process
             try:
-                table = task.process.get([part.mri, "datasets", "value"])
+                table = process.get([part.mri, "datasets", "value"])
             except LookupError:
                 continue
             if not table:
@@ -428,6 +514,10 @@ class ScanFilePart(Part):
                     row = replace(row, name=group + "." + row.name[len(raw) :])
                 rows.append(row)
         return rows
+
+    @RunnableDevice.PreRun
+    async def pre_run(self, task: Task, device: Any) -> None:
+        self._ran = True
 
     @RunnableDevice.PostRunArmed
     async def post_run_armed(self, task: Task, device: Any) -> None:
@@ -444,9 +534,42 @@ class ScanFilePart(Part):
         if device.points is not None and device.completedSteps > 0:
             await self.write(task, device)
 
-    async def write(self, task: Task, device: Any) -> None:
+    # ---- a fault: the points taken are still written
+    def _on_state(self, state: Any) -> None:
+        if state != "Fault" or not self._ran or self.path is None:
+            return
+        if self._fault_write is not None and not self._fault_write.done():
+            return
+        self._fault_write = fut = asyncio.ensure_future(self._write_on_fault())
+        fut.add_done_callback(lambda f: f.cancelled() or f.exception())
+
+    async def _write_on_fault(self) -> None:
+        """Once the children's aborts (started by the device parts when the
+        beamline faulted) have ended, or after :attr:`FAULT_ABORT_WAIT`,
+        write the file from what the raw files hold; what cannot be read
+        is logged and named in the file's ``problems`` attribute."""
+        device = self._device
+        self._ran = False
+        await asyncio.sleep(0)  # the device parts start their children's aborts
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(
+                asyncio.gather(*(p.aborted() for p in self.devices())),
+                self.FAULT_ABORT_WAIT,
+            )
+        health = self._controller.block.health.value
+        try:
+            await self.write(None, device, {"fault": str(health)})
+        except Exception as e:  # nothing left to fault: say so, never raise
+            log.error(
+                "%s: the file of the faulted scan %s: %s", device.mri, self.path, e
+            )
+
+    async def write(
+        self, task: Task | None, device: Any, extra: dict[str, Any] | None = None
+    ) -> None:
         """Assemble the file in a worker thread; problems are logged (the
-        rest is written) and kept in ``last_result``."""
+        rest is written), put in the file's ``problems`` attribute and kept
+        in ``last_result``. ``extra`` attributes go on ``/entry``."""
         if self.path is None or device.points is None:
             return
         from malcolm.io.nexus import assemble
@@ -455,6 +578,7 @@ class ScanFilePart(Part):
         points = device.points.copy()
         path = self.path
         attrs = {"scan_mri": device.mri, "completed_steps": device.completedSteps}
+        attrs.update(extra or {})
 
         def work() -> Any:
             import numpy as np  # loaded with the first file, not at start-up

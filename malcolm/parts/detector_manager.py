@@ -12,7 +12,11 @@ position plugin (``ADCore.PositionPlugin``) and an HDF5 writer
   put), then **arms**: the plugin running and the writer capturing, and in
   External mode the driver acquiring, waiting for triggers;
 - **run** starts the driver (Internal) and waits for the writer's capture,
-  the plugin and the driver to finish; progress is the frames written;
+  the plugin and the driver to finish; progress is the frames written. In
+  External mode a run that sees no new frame within the frame timeout
+  (configure's ``frameTimeout``, else 3 x the longest point + 10 s) stops
+  the children and fails, naming the frame it waited for: the manager
+  goes to Fault (a trigger was lost);
 - **pause** stops the driver and the plugins (the file is closed); **seek**
   to step k re-arms at k: the plugin's ``idStart`` is k + 1 and its
   positions start at point k, the writer appends to the file;
@@ -27,8 +31,10 @@ the positions it has used since it was cleared).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import functools
 import os
+import time
 from typing import Any
 
 from malcolm.core import (
@@ -60,6 +66,13 @@ MIN_EXPOSURE = 0.0001
 XML_BATCH = 2500
 #: seconds to wait for a child to show it is armed or stopped
 SETTLE_TIMEOUT = 10.0
+#: the frame timeout of an External run (configure's ``frameTimeout`` 0):
+#: this many times the scan's longest point, plus the margin below, for the
+#: motion's run-up and turnarounds (the simulated motors' 0.1 s ACCL makes a
+#: snake's turnaround 0.2 s; a real controller's may take seconds)
+FRAME_TIMEOUT_FACTOR = 3.0
+#: seconds added to the frame timeout (see FRAME_TIMEOUT_FACTOR)
+FRAME_TIMEOUT_MARGIN = 10.0
 #: HDF5 paths the writer uses
 DATA_PATH = "/entry/data"
 UID_PATH = "/entry/uid"
@@ -68,6 +81,23 @@ UID_PATH = "/entry/uid"
 #: the XML of the last few batches (a scan configured again, or another of
 #: the same size, loads the same batches: 65 kB of text each)
 _batch_xml = functools.lru_cache(maxsize=8)(positions_xml)
+
+
+class FrameClock:
+    """When the last new frame of a run was seen: ``count`` frames of the
+    scan so far (``first`` at the run's start), at loop time ``since``
+    (wall-clock time ``wall``)."""
+
+    def __init__(self, first: int) -> None:
+        self.first = self.count = first
+        self.since = asyncio.get_running_loop().time()
+        self.wall = time.time()
+
+    def saw(self, count: int) -> None:
+        if count > self.count:
+            self.count = count
+            self.since = asyncio.get_running_loop().time()
+            self.wall = time.time()
 
 
 class DetectorManagerPart(Part):
@@ -106,6 +136,7 @@ class DetectorManagerPart(Part):
         self._topping = False
         self._file = ""
         self._mode = ""  # the trigger mode of the scan configured
+        self._frame_timeout = 0.0  # seconds without a frame (External) = Fault
 
     # ---- fields
     def setup(self, registrar: PartRegistrar) -> None:
@@ -125,6 +156,16 @@ class DetectorManagerPart(Part):
         registrar.add_configure_arg(
             "exposure",
             NumberMeta("float64", "Exposure per frame in s (0: the scan's duration)"),
+            default=0.0,
+        )
+        registrar.add_configure_arg(
+            "frameTimeout",
+            NumberMeta(
+                "float64",
+                "External: seconds without a new frame before the run faults"
+                f" (0: {FRAME_TIMEOUT_FACTOR:g} x the longest point"
+                f" + {FRAME_TIMEOUT_MARGIN:g} s)",
+            ),
             default=0.0,
         )
         self.trigger_mode = registrar.add_attribute(
@@ -246,11 +287,26 @@ class DetectorManagerPart(Part):
             name = str(device.params.get("formatName") or "")
             self._file = f"{name}.h5" if file_dir else ""
             self._mode = self.trigger_mode.value
+            self._frame_timeout = self.frame_timeout(device)
             settings = self._settings(device, file_dir, name)
             self._show_datasets(name)
             await self._arm(task, 0, device.configuredSteps, True, settings)
         except ChannelError as e:
             raise self._failed(task, e) from e
+
+    @staticmethod
+    def frame_timeout(device: Any) -> float:
+        """Seconds an External run waits for its next frame: ``frameTimeout``,
+        else :data:`FRAME_TIMEOUT_FACTOR` x the scan's longest point +
+        :data:`FRAME_TIMEOUT_MARGIN`."""
+        given = float(device.params.get("frameTimeout") or 0.0)
+        if given > 0:
+            return given
+        points = device.points
+        longest = 0.0
+        if points is not None and points.has_duration and points.size:
+            longest = float(points.duration.max())
+        return FRAME_TIMEOUT_FACTOR * longest + FRAME_TIMEOUT_MARGIN
 
     def _children_busy(self) -> bool:
         """Whether the driver acquires, the plugin runs or the writer
@@ -477,14 +533,21 @@ class DetectorManagerPart(Part):
             # plugin's ends when its positions are used up: not a frame count)
             busy = [self._busy[k] for k in ("driver", "writer") if k in self._busy]
             counter = self.hdf.numCaptured if self._file else self.pos.processed
+            frames = FrameClock(start)
+
+            def on_frames(n: Any) -> None:
+                frames.saw(start + int(n))
+                task.report_progress(min(start + int(n), end))
+
             ids = [
-                task.subscribe(
-                    counter, lambda n: task.report_progress(min(start + int(n), end))
-                ),
+                task.subscribe(counter, on_frames),
                 task.subscribe(self.pos.positions, self._top_up, task),
             ]
             try:
-                await task.wait_all(*busy)
+                if self.external:
+                    await self._until_done_or_stalled(task, busy, frames)
+                else:
+                    await task.wait_all(*busy)
             finally:
                 for sid in ids:
                     task.unsubscribe(sid)
@@ -500,6 +563,38 @@ class DetectorManagerPart(Part):
                 f" ({self.hdf.fullFileName.value})"
             )
         task.report_progress(end)
+
+    async def _until_done_or_stalled(
+        self, task: Task, busy: list[Any], frames: FrameClock
+    ) -> None:
+        """Wait for the run's ``busy`` puts; if no new frame comes within the
+        frame timeout (a trigger lost), stop the children and raise an error
+        naming the detector, the frame waited for and the time."""
+        bound = self._frame_timeout or FRAME_TIMEOUT_MARGIN
+        done = asyncio.ensure_future(task.wait_all(*busy))
+        loop = asyncio.get_running_loop()
+        try:
+            while True:
+                left = frames.since + bound - loop.time()
+                if left <= 0:
+                    break
+                finished, _ = await asyncio.wait({done}, timeout=left)
+                if finished:
+                    done.result()
+                    return
+        finally:
+            if not done.done():
+                done.cancel()
+        waited = frames.count + 1
+        with contextlib.suppress(Exception):
+            await self._stop_all(task)
+        since = "the last" if frames.count > frames.first else "the run's start"
+        raise MalcolmError(
+            f"{self._mri}: no frame {waited} (uniqueId {waited}) within"
+            f" {bound:g} s of {since}"
+            f" ({time.strftime('%H:%M:%S UTC', time.gmtime(frames.wall))}):"
+            " External triggers lost?"
+        )
 
     @RunnableDevice.PostRunArmed
     async def post_run_armed(self, task: Task, device: Any) -> None:

@@ -27,6 +27,7 @@ from malcolm.scan import gda, scan_points
 from .scans import run
 
 ORDER: list[str] = []  # which device started its run when
+SEEKS: list[str] = []  # "<device> <begin|end>" of each device's Seek
 
 
 class FakeDevicePart(Part):
@@ -46,6 +47,8 @@ class FakeDevicePart(Part):
         registrar.add_configure_arg("formatName", StringMeta("name"), self.name)
         self.datasets = registrar.add_attribute("datasets", datasets_meta())
         self.count = registrar.add_attribute("rowsWritten", NumberMeta("int32"), 0)
+        if self.kind == "primary":  # as the DetectorManager does
+            registrar.add_configure_arg("frameTimeout", NumberMeta("float64"), 0.0)
         if self.kind == "position_value":
             registrar.controller.block.simultaneousAxes.set_value(["x", "y"])
 
@@ -79,6 +82,13 @@ class FakeDevicePart(Part):
                 task.report_progress(step + 1)
         finally:
             self.write()
+
+    @RunnableDevice.Seek
+    async def seek(self) -> None:
+        SEEKS.append(f"{self.name} begin")
+        # the motion takes a while to stop (it decelerates)
+        await asyncio.sleep(0.05 if self.name == "motors" else 0.001)
+        SEEKS.append(f"{self.name} end")
 
     @RunnableDevice.Abort
     async def abort(self) -> None:
@@ -115,6 +125,7 @@ async def make(tmp_path: Path) -> tuple[Process, dict[str, FakeDevicePart]]:
     build_block(process, expanded)
     await process.start()
     ORDER.clear()
+    SEEKS.clear()
     return process, devices
 
 
@@ -135,10 +146,14 @@ def test_configure_hands_each_child_its_arguments(tmp_path):
         assert list(p.get(["BL", "simultaneousAxes", "value"])) == ["x", "y"]
         defaults = p.get(["BL", "configure", "meta", "defaults"])
         assert defaults["fileTemplate"] == "%s.nxs" and defaults["fileDir"] == ""
+        assert defaults["frameTimeout"] == 0.0
         await p.post(["BL", "configure"], {"generator": spiral(),
                      "axesToMove": ["x", "y"], "fileDir": str(tmp_path),
-                     "formatName": "s1"})  # fmt: skip
+                     "formatName": "s1", "frameTimeout": 2.5})  # fmt: skip
         assert p.get(["BL", "state", "value"]) == "Armed"
+        # the detector alone takes the frame timeout
+        assert devices["DET"].got["frameTimeout"] == 2.5
+        assert "frameTimeout" not in devices["MOTORS"].got
         for name, part in devices.items():
             assert part.got["fileDir"] == str(tmp_path)
             assert part.got["formatName"] == f"s1-{name.lower()}"
@@ -173,6 +188,10 @@ def test_pause_seek_resume_gives_one_row_per_point(tmp_path):
         assert p.get(["BL", "state", "value"]) == "Finished"
         # the motion started after the detector and the Zebra, both times
         assert ORDER[2] == "motors" and ORDER[-1] == "motors", ORDER
+        # and stopped first: its pause ended before the others' began
+        assert SEEKS[:2] == ["motors begin", "motors end"], SEEKS
+        assert sorted(SEEKS[2:]) == ["det begin", "det end", "zebra begin",
+                                     "zebra end"]  # fmt: skip
         det = devices["DET"]
         assert len(det.rows) > 41  # points 10.. were done twice
         with h5py.File(tmp_path / "s2.nxs", "r") as f:
@@ -200,6 +219,15 @@ def test_a_child_fault_ends_the_scan_in_fault_naming_it(tmp_path):
         assert p.get(["BL", "state", "value"]) == "Fault"
         assert p.get(["BL", "health", "value"]).startswith("ZEBRA: ")
         assert "lost zebra at step 5" in p.get(["BL", "health", "value"])
+        # the file is written from the rows taken before the fault
+        for _ in range(500):
+            if (tmp_path / "bl.nxs").exists():
+                break
+            await asyncio.sleep(0.01)
+        with h5py.File(tmp_path / "bl.nxs", "r") as f:
+            assert f["/entry"].attrs["fault"].startswith("ZEBRA: ")
+            uid = f["/entry/uniqueid"][()].tolist()
+            assert uid[:5] == [1, 2, 3, 4, 5] and 0 in uid
         # the others were stopped, not left running
         for _ in range(100):
             if p.get(["BL:MOTORS", "state", "value"]) == "Aborted":

@@ -110,6 +110,8 @@ def test_a_missing_file_is_named_and_the_rest_written(tmp_path):
     with h5py.File(tmp_path / "s.nxs", "r") as f:
         assert "x" not in f["/entry"]
         assert f["/entry/det/data"].shape == (2, 2, 2)
+        # named in the file too, for whoever reads it
+        assert list(f["/entry"].attrs["problems"]) == result.problems
 
 
 def test_mismatched_lengths_are_named(tmp_path):

@@ -14,7 +14,9 @@ waveform, the design document's ``xml``), ``MaxSize`` (frame side).
 Every frame the driver makes goes to the plugins whose callbacks are
 enabled: the position plugin tags it with the next position (and its
 uniqueId), the writer appends it (and its position) to the file with h5py.
-A frame's pixels all hold its uniqueId (modulo 65536).
+A frame's pixels all hold its uniqueId (modulo 65536); an External
+frame's, the index + 1 of the point whose trigger made it (the same when
+the frame is tagged right), so a frame at a wrong uniqueId shows.
 
 Frames come on an absolute schedule: in Internal mode frame k is due at
 the acquisition's start plus k periods (a late frame is made at once, so
@@ -144,7 +146,7 @@ class Detector(Stoppable):
         if total is not None and self._made >= total:
             return
         self._made += 1
-        self._frame(self._made)
+        self._frame(self._made, point)
         if total is not None and self._made >= total:
             self.triggered.set()  # the acquisition is complete
 
@@ -196,7 +198,7 @@ class Detector(Stoppable):
             except TimeoutError:
                 pass
 
-    def _frame(self, made: int) -> None:
+    def _frame(self, made: int, point: int = -1) -> None:
         count = self.counter_rbv.get() + 1
         self.counter_rbv.set(count)
         self.images.set(made)
@@ -209,7 +211,9 @@ class Detector(Stoppable):
                 if tagged is not None:
                     uid, position = tagged
         side = int(self.size.get())
-        frame = np.full((side, side), uid % 65536, dtype=np.uint16)
+        # what the detector saw: the point that triggered it, else its uid
+        seen = point + 1 if point >= 0 else uid
+        frame = np.full((side, side), seen % 65536, dtype=np.uint16)
         for plugin in self.plugins:
             if isinstance(plugin, HDFWriter):
                 plugin.write(frame, uid, position)

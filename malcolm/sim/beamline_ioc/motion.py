@@ -29,7 +29,11 @@ axes A and B; a put completes at the end), ``ExecuteStatus_RBV``,
 ``ReadbacksA``/``ReadbacksB`` (each motor's RBV as each profile point was
 reached, posted once an execution ends, aborted or not, before
 ``ExecuteState_RBV`` says Done: the motor module's trajectoryScan
-``M1Readbacks`` after its ``ReadbackProfile``) and ``AbortProfile``.
+``M1Readbacks`` after its ``ReadbackProfile``) and ``AbortProfile`` (the
+axes decelerate: the profile points due within the axes' longest ``ACCL``
+of the abort are still reached, their triggers too, as a controller's
+position compare goes on firing while the motors stop; then the execution
+ends with Failure).
 
 It holds :attr:`Trajectory.MAX_POINTS` (50,000) profile points, enough for a
 10,000-point scan (two profile points per scan point, plus the run-up and
@@ -216,6 +220,8 @@ class Trajectory:
         )
         self.built: tuple[dict[str, np.ndarray], np.ndarray, np.ndarray] | None = None
         self.aborted = False
+        #: when the abort came (the loop's time), if it did
+        self.abort_at = 0.0
         #: called with the ``PointIndices`` entry (the scan point's index) of
         #: each profile point reached whose entry is not -1 (the way a motion
         #: controller's position compare triggers a detector)
@@ -250,8 +256,13 @@ class Trajectory:
         self.build_status.set(1)
 
     def _abort(self, value: int) -> None:
-        if value:
+        if value and not self.aborted:
             self.aborted = True
+            self.abort_at = asyncio.get_running_loop().time()
+
+    def stop_time(self) -> float:
+        """Seconds an abort takes to stop the axes: their longest ``ACCL``."""
+        return max((max(m.accl.get(), 0.0) for m in self.axes.values()), default=0.0)
 
     async def _execute(self, value: int) -> None:
         if not value:
@@ -275,8 +286,9 @@ class Trajectory:
         reached = 0
         try:
             for i, at in enumerate(due):
-                await schedule.until(schedule.start + at / 1e6)
-                if self.aborted:
+                deadline = schedule.start + at / 1e6
+                await schedule.until(deadline)
+                if self.aborted and deadline > self.abort_at + self.stop_time():
                     self.exec_status.set(2)
                     return
                 for axis, record in placed.items():

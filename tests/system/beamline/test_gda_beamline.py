@@ -12,6 +12,8 @@ from __future__ import annotations
 import os
 import queue
 import signal
+import subprocess
+import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -112,6 +114,12 @@ def check_file(beamline: Beamline, name: str, generator: Value) -> np.ndarray:
         assert uid.tolist() == list(range(1, n + 1))  # nothing missing
         frames = f["/entry/det/data"]
         assert frames.shape[: len(points.shape)] == tuple(points.shape)
+        # each frame is the one its point's trigger made (the simulated
+        # detector's pixels hold that point's index + 1): none taken from
+        # the motion's deceleration at a pause as a re-done point
+        seen = np.asarray(frames[()]).reshape(n, -1)
+        wrong = [i + 1 for i in range(n) if not (seen[i] == (i + 1) % 65536).all()]
+        assert not wrong, f"frames at the wrong uniqueId: {wrong}"
         assert f["/entry/det"].attrs["NX_class"] == "NXdata"
         for axis in points.axes:
             want = np.concatenate(list(points.column("positions", axis)))
@@ -145,6 +153,7 @@ def test_gda_reads(ctx):
     configure = ctx.get(f"{SCAN}.configure", timeout=10)
     defaults = to_dict(configure["meta.defaults"])
     assert defaults["fileTemplate"] == "%s.nxs"
+    assert defaults["frameTimeout"] == 0.0  # the detector's own bound
     assert defaults["fileDir"]  # malcolm beamline --file-dir
     assert configure["meta.takes.required"] == ["generator"]
     datasets = ctx.get(f"{SCAN}.datasets", timeout=10)
@@ -225,6 +234,7 @@ def test_ioc_killed_mid_run_faults_naming_the_child(beamline, ctx):
     health = ctx.get(f"{SCAN}.health", timeout=10)["value"]
     assert health.split(":")[0] in ("DET", "MOTORS"), health
     assert alive(beamline.child_pids()["Zebra2"])
+    check_fault_file(beamline, "killed", generator, health)
     beamline.restart_ioc()
     # the hardware blocks say when their channels are connected again
     hardware = ["DET:DRV", "DET:POS", "DET:HDF", "MOTORS:traj", "MOTORS:a", "MOTORS:b"]
@@ -240,6 +250,79 @@ def test_ioc_killed_mid_run_faults_naming_the_child(beamline, ctx):
     call(ctx, "run")
     assert state(ctx) == "Finished"
     check_file(beamline, "after", small)
+
+
+def test_frames_that_stop_coming_fault_naming_det_and_the_frame(beamline, ctx):
+    """A second Channel Access client cuts the driver's array callbacks
+    mid-run: the motion and the Zebra finish, no frame reaches the writer
+    again, and the detector's frame timeout (its default: 3 x 0.05 s + 10 s)
+    ends the scan in Fault naming DET and the frame; the file holds the
+    points taken."""
+    from malcolm.sim.beamline_ioc import ca_environment
+
+    generator = compound(line("y", 3, 0, 1, False), line("x", 20, 0, 2, True))
+    ready(ctx)
+    call(ctx, "configure", scan_args(generator, ["x", "y"], "stalled"))
+    cut = (
+        "import epics; epics.caput('BLT:CAM:ArrayCallbacks', 0, wait=True,"
+        " timeout=10) or exit(1)"
+    )
+    with ThreadPoolExecutor(1) as pool:
+        running = pool.submit(call, ctx, "run")
+        deadline = time.monotonic() + 60
+        while ctx.get(f"{SCAN}.completedSteps", timeout=10)["value"] < 5:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        subprocess.run(
+            [sys.executable, "-c", cut],
+            env={**os.environ, **ca_environment(beamline.ca_port)},
+            check=True,
+            timeout=30,
+        )
+        # a ceiling for "it happens": the bound is 10.15 s after the last frame
+        with pytest.raises(RemoteError, match="no frame"):
+            running.result(timeout=60)
+    wait_state(ctx, "Fault", timeout=30)
+    health = ctx.get(f"{SCAN}.health", timeout=10)["value"]
+    assert health.startswith("DET: "), health
+    assert "BLT:DET: no frame " in health and "within 10.15 s of the last" in health
+    check_fault_file(beamline, "stalled", generator, health)
+    with h5py.File(beamline.file_dir / "stalled.nxs", "r") as f:
+        assert "det" in f["/entry"]  # the IOC is alive: its raw file is read
+    ready(ctx)  # reset: the next configure turns the callbacks on again
+
+
+def check_fault_file(
+    beamline: Beamline, name: str, generator: Value, health: str
+) -> None:
+    """The faulted scan's file is written from what the raw files hold: the
+    points taken before the fault (at least the 5 seen) are in it, a raw
+    file the lost IOC left unreadable is named in ``problems``."""
+    path = beamline.file_dir / f"{name}.nxs"
+    deadline = time.monotonic() + 60  # a ceiling for "it is written"
+    while not path.exists():
+        assert time.monotonic() < deadline, f"no {path} after the fault"
+        time.sleep(0.1)
+    n = points_of(generator).size
+    with h5py.File(path, "r") as f:
+        entry = f["/entry"]
+        assert entry.attrs["fault"] == health
+        uid = entry["uniqueid"][()].reshape(-1)
+        taken = int((uid > 0).sum())
+        assert uid[:5].tolist() == [1, 2, 3, 4, 5]  # the rows taken first
+        assert 5 <= taken < n
+        # the Zebra (still alive) wrote its rows of those points
+        for dataset in entry["zebra"].values():
+            assert dataset.shape[: len(points_of(generator).shape)] == tuple(
+                points_of(generator).shape
+            )
+        problems = [str(p) for p in entry.attrs.get("problems", [])]
+        if "det" in entry:
+            frames = entry["det/data"][()].reshape(n, -1)
+            got = [i for i in range(n) if uid[i] and frames[i].any()]
+            assert got and all((frames[i] == i + 1).all() for i in got)
+        else:  # the IOC's file, cut short, is named
+            assert any(f"{name}-det.h5" in p for p in problems), problems
 
 
 def test_a_bad_generator_is_refused_and_serving_goes_on(ctx):

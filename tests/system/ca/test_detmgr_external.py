@@ -28,6 +28,8 @@ async def build_trajectory(process: Process, start: int, stop: int, ms: int) -> 
     await put(["TRAJ", "positionsA"], np.arange(start, stop, dtype=float))
     await put(["TRAJ", "positionsB"], np.zeros(n))
     await put(["TRAJ", "times"], np.full(n, ms * 1000, dtype=np.int32))  # us
+    # each profile point triggers the frame of its scan point
+    await put(["TRAJ", "pointIndices"], np.arange(start, stop, dtype=np.int32))
     await put(["TRAJ", "numPoints"], n)
     await process.post(["TRAJ", "buildProfile"])
 

@@ -1,0 +1,71 @@
+"""ADCore.DetectorManager in External mode whose triggers stop mid-run: the
+run ends in Fault within the frame timeout, naming the detector, the frame
+it waited for and the time (issue 13's lost trigger)."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+
+from malcolm.core import MalcolmError
+
+from .conftest import run, until
+from .test_detmgr_external import build_trajectory
+from .test_detmgr_scans import line, make_manager, started
+
+
+def test_external_run_whose_triggers_stop_faults_naming_the_frame(ioc, tmp_path):
+    process = make_manager("External", "TRAJ")
+    total = 10
+
+    async def scenario():
+        det = await started(process)
+        try:
+            params = {
+                "generator": line(total, 0.02),
+                "fileDir": str(tmp_path),
+                "frameTimeout": 1.0,
+            }
+            await process.post(["DET", "configure"], params)
+            # the motion makes the triggers of points 0..3 only: frame 5's
+            # trigger never comes
+            await build_trajectory(process, 0, 4, 20)
+            running = asyncio.ensure_future(process.post(["DET", "run"]))
+            await process.post(["TRAJ", "executeProfile"])
+            await until(lambda: det.completedSteps.value >= 4, what="4 frames")
+            # a generous ceiling for "it happens": the bound is 1 s
+            with pytest.raises(MalcolmError) as raised:
+                await asyncio.wait_for(running, 30)
+            await until(lambda: det.state.value == "Fault", what="Fault")
+            health = det.health.value
+            assert "DET: no frame 5 (uniqueId 5) within 1 s of the last (" in health
+            assert "External triggers lost" in health
+            assert "no frame 5" in str(raised.value)
+            # the children were stopped: nothing left acquiring
+            drv = process.get_block("DET:DRV")
+            await until(lambda: drv.detectorState.value == "Idle", what="Idle")
+            assert process.get_block("DET:HDF").capture.value is False
+            await process.post(["DET", "reset"])
+            assert det.state.value == "Ready"
+        finally:
+            await process.stop()
+
+    run(scenario())
+
+
+def test_the_default_frame_timeout_follows_the_longest_point(ioc):
+    process = make_manager("External")
+
+    async def scenario():
+        det = await started(process)
+        try:
+            meta = det.configure.meta
+            assert meta.defaults["frameTimeout"] == 0.0
+            assert "3 x the longest point + 10 s" in (
+                meta.takes.elements["frameTimeout"].description
+            )
+        finally:
+            await process.stop()
+
+    run(scenario())
