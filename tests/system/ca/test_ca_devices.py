@@ -22,6 +22,7 @@ def test_a_trajectory_is_built_and_executed_in_time(ioc):
             await put(["TRAJ", "positionsA"], np.array([1.0, 2.0, 3.0, 4.0]))
             await put(["TRAJ", "positionsB"], np.array([-1.0, -2.0, -3.0, -4.0]))
             await put(["TRAJ", "times"], np.array([0, 5, 5, 5], dtype=np.int32))
+            await put(["TRAJ", "pointIndices"], np.arange(4, dtype=np.int32))
             await put(["TRAJ", "numPoints"], 4)
             # a time of 0 us: the build fails, and says why
             with pytest.raises(ChannelError) as info:

@@ -22,12 +22,18 @@ from .test_detmgr_scans import (
 
 
 async def build_trajectory(process: Process, start: int, stop: int, ms: int) -> None:
-    """Points ``start..stop-1`` of a line as the trajectory, by PV puts."""
+    """Points ``start..stop-1`` of a line as the trajectory, by PV puts.
+
+    Every array the build reads is written: the IOC is the session's, and
+    another test's trajectory (a motor manager's, with -1 indices at its
+    turnarounds that trigger nothing) is still in the ones not written."""
     n = stop - start
     put = process.put
     await put(["TRAJ", "positionsA"], np.arange(start, stop, dtype=float))
     await put(["TRAJ", "positionsB"], np.zeros(n))
     await put(["TRAJ", "times"], np.full(n, ms * 1000, dtype=np.int32))  # us
+    # each profile point triggers one frame, of its scan point's index
+    await put(["TRAJ", "pointIndices"], np.arange(start, stop, dtype=np.int32))
     await put(["TRAJ", "numPoints"], n)
     await process.post(["TRAJ", "buildProfile"])
 

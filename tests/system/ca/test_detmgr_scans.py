@@ -170,6 +170,9 @@ def test_external_frames_come_from_the_trajectory(ioc, tmp_path):
             await put(["TRAJ", "positionsA"], np.linspace(0.0, 1.0, 6))
             await put(["TRAJ", "positionsB"], np.zeros(6))
             await put(["TRAJ", "times"], np.full(6, 10_000, dtype=np.int32))
+            # every array the build reads: the session's IOC keeps another
+            # test's (a motor manager's -1 indices trigger nothing)
+            await put(["TRAJ", "pointIndices"], np.arange(6, dtype=np.int32))
             await put(["TRAJ", "numPoints"], 6)
             await process.post(["TRAJ", "buildProfile"])
             running = asyncio.ensure_future(process.post(["DET", "run"]))
