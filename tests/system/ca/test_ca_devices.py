@@ -11,7 +11,7 @@ import pytest
 
 from malcolm.io import ChannelError
 
-from .conftest import follow, run, started, until
+from .conftest import follow, run, spawn, started, until
 
 
 def test_a_trajectory_is_built_and_executed_in_time(ioc):
@@ -68,8 +68,8 @@ def test_the_hdf_writer_writes_tagged_frames_into_a_file(ioc, tmp_path):
             await put(["DRV", "numImages"], 6)
             await put(["DRV", "imageMode"], "Multiple")
             # completes at 6 frames / when the positions are used up
-            capturing = asyncio.ensure_future(put(["HDF", "capture"], True))
-            starting = asyncio.ensure_future(put(["POS", "start"], True))
+            capturing = spawn(put(["HDF", "capture"], True))
+            starting = spawn(put(["POS", "start"], True))
             hdf = process.get_block("HDF")
             await until(lambda: hdf.capture.value and pos.running.value, what="armed")
             await put(["DRV", "acquire"], "Acquire")

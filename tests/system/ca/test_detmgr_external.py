@@ -11,7 +11,7 @@ import numpy as np
 from malcolm.config.build import build_definition
 from malcolm.core import Process
 
-from .conftest import PREFIX, run, until
+from .conftest import PREFIX, run, spawn, until
 from .test_detmgr_scans import (
     last_per_uid,
     line,
@@ -49,8 +49,8 @@ def test_external_pause_seek_back_rearms_at_the_point(ioc, tmp_path):
             params = {"generator": line(total, 0.02), "fileDir": str(tmp_path)}
             await process.post(["DET", "configure"], params)
             await build_trajectory(process, 0, total, 20)
-            running = asyncio.ensure_future(process.post(["DET", "run"]))
-            moving = asyncio.ensure_future(process.post(["TRAJ", "executeProfile"]))
+            running = spawn(process.post(["DET", "run"]))
+            moving = spawn(process.post(["TRAJ", "executeProfile"]))
             await until(lambda: det.completedSteps.value >= 12, what="12 frames")
             # the motion stops first (the motion controller's pause), then
             # the detector goes back to point 5 and waits for its trigger
