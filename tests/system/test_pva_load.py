@@ -86,6 +86,21 @@ def final_seen(watcher: Watcher, run: int) -> bool:
     )
 
 
+def lagging(watchers: list[Watcher], run: int) -> list[Any]:
+    """What the clients that have not seen the final values hold instead."""
+    return [
+        (
+            i,
+            w.value("SCAN", "completedSteps.value"),
+            w.value("SCAN", "state.value"),
+            w.value("COUNTER", "counter.value"),
+            w.events,
+        )
+        for i, w in enumerate(watchers)
+        if not final_seen(w, run)
+    ]
+
+
 def test_fifty_clients_see_the_final_values_and_memory_is_flat(demo):
     control = demo.context()
     rss = []
@@ -108,7 +123,10 @@ def test_fifty_clients_see_the_final_values_and_memory_is_flat(demo):
             final = control.get("SCAN", timeout=10)
             assert final["state.value"] == "Finished"
             assert final["completedSteps.value"] == STEPS
-            wait_until(lambda w=watchers, r=run: all(final_seen(x, r) for x in w))
+            wait_until(
+                lambda w=watchers, r=run: all(final_seen(x, r) for x in w),
+                what=lambda w=watchers, r=run: lagging(w, r),
+            )
             for w in watchers:
                 assert (
                     w.value("DET1", "completedSteps.value")

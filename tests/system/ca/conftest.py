@@ -77,8 +77,47 @@ def follow(process: Process, mri: str, field: str) -> list[Any]:
     return seen
 
 
+#: the tasks ``spawn`` made in the scenario ``run`` is running
+_spawned: list[asyncio.Task[Any]] = []
+
+
+def spawn(coro: Any) -> asyncio.Task[Any]:
+    """``coro`` as a task the scenario awaits later (a move it stops...).
+
+    If the scenario fails before awaiting it, :func:`run` ends it and takes
+    its outcome, so that no "Task exception was never retrieved" (say the
+    ``DisconnectedError`` of a put whose channel the process closed) is left
+    to fail whichever later test the garbage collector runs in."""
+    task = asyncio.ensure_future(coro)
+    _spawned.append(task)
+    return task
+
+
+async def _settle_spawned() -> None:
+    tasks, _spawned[:] = list(_spawned), []
+    for task in tasks:
+        task.cancel()  # a no-op once done
+    for task in tasks:
+        try:
+            await task
+        except BaseException:  # the scenario's own error is what counts
+            pass
+
+
 def run(coro: Any, timeout: float = 60) -> Any:
-    return asyncio.run(asyncio.wait_for(coro, timeout))
+    """Run the scenario ``coro`` on a new loop, at most ``timeout`` s; tasks
+    it spawned and did not await are ended and their outcomes taken."""
+
+    async def scenario() -> Any:
+        try:
+            return await asyncio.wait_for(coro, timeout)
+        except BaseException:
+            await _settle_spawned()
+            raise
+        finally:
+            _spawned.clear()  # passed: it awaited what it spawned
+
+    return asyncio.run(scenario())
 
 
 async def until(predicate: Any, timeout: float = 10.0, what: str = "") -> float:

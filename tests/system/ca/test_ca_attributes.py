@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
-
 import epics
 import numpy as np
 import pytest
@@ -16,7 +14,7 @@ from malcolm.core import (
     NumberMeta,
 )
 
-from .conftest import PREFIX, follow, run, started, until
+from .conftest import PREFIX, follow, run, spawn, started, until
 
 
 def test_every_attribute_type_is_read_from_the_ioc(ioc):
@@ -158,10 +156,12 @@ def test_a_motor_stop_action_stops_a_move(ioc):
         async with started("M2") as process:
             m2 = process.get_block("M2")
             await process.put(["M2", "velocity"], 5.0)
-            moving = asyncio.ensure_future(process.put(["M2", "position"], 50.0))
+            moving = spawn(process.put(["M2", "position"], 50.0))
             await until(lambda: m2.doneMoving.value is False, what="moving")
-            await process.post(["M2", "stop"])
-            assert m2.doneMoving.value is True
+            await process.post(["M2", "stop"])  # returns once DMOV reads 1
+            # the action read DMOV with a get; the block's doneMoving is its
+            # own monitor of DMOV, whose event can come after the get's answer
+            await until(lambda: m2.doneMoving.value is True, what="DMOV monitor")
             await moving  # the move's put completes once stopped
             assert 0.0 < m2.position.value < 50.0
             await process.put(["M2", "velocity"], 1000.0)

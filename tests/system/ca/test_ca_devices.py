@@ -11,7 +11,7 @@ import pytest
 
 from malcolm.io import ChannelError
 
-from .conftest import follow, run, started, until
+from .conftest import follow, run, spawn, started, until
 
 
 def test_a_trajectory_is_built_and_executed_in_time(ioc):
@@ -22,6 +22,7 @@ def test_a_trajectory_is_built_and_executed_in_time(ioc):
             await put(["TRAJ", "positionsA"], np.array([1.0, 2.0, 3.0, 4.0]))
             await put(["TRAJ", "positionsB"], np.array([-1.0, -2.0, -3.0, -4.0]))
             await put(["TRAJ", "times"], np.array([0, 5, 5, 5], dtype=np.int32))
+            await put(["TRAJ", "pointIndices"], np.arange(4, dtype=np.int32))
             await put(["TRAJ", "numPoints"], 4)
             # a time of 0 us: the build fails, and says why
             with pytest.raises(ChannelError) as info:
@@ -66,11 +67,13 @@ def test_the_hdf_writer_writes_tagged_frames_into_a_file(ioc, tmp_path):
             await put(["HDF", "numCapture"], 6)
             await put(["HDF", "enableCallbacks"], True)
             await put(["DRV", "exposure"], 0.005)
+            # the session's IOC may hold another test's External mode
+            await put(["DRV", "triggerMode"], "Internal")
             await put(["DRV", "numImages"], 6)
             await put(["DRV", "imageMode"], "Multiple")
             # completes at 6 frames / when the positions are used up
-            capturing = asyncio.ensure_future(put(["HDF", "capture"], True))
-            starting = asyncio.ensure_future(put(["POS", "start"], True))
+            capturing = spawn(put(["HDF", "capture"], True))
+            starting = spawn(put(["POS", "start"], True))
             hdf = process.get_block("HDF")
             await until(lambda: hdf.capture.value and pos.running.value, what="armed")
             await put(["DRV", "acquire"], "Acquire")

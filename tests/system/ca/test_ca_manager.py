@@ -13,7 +13,7 @@ from pathlib import Path
 from malcolm.config.build import build_definition
 from malcolm.core import Process
 
-from .conftest import PREFIX, run, until
+from .conftest import PREFIX, run, spawn, until
 
 FIXTURES = Path(__file__).parents[2] / "unit" / "config_fixtures" / "blocks"
 
@@ -62,11 +62,9 @@ def test_the_document_manager_scans_with_the_ca_position_plugin(ioc):
             await process.put(["sim:drv", "acquirePeriod"], 0.002)
             await process.put(["sim:drv", "numImages"], 150)
             await process.put(["sim:drv", "imageMode"], "Multiple")
-            scan = asyncio.ensure_future(process.post(["DET", "run"]))
+            scan = spawn(process.post(["DET", "run"]))
             await until(lambda: pos.running.value, what="plugin running")
-            acquiring = asyncio.ensure_future(
-                process.put(["sim:drv", "acquire"], "Acquire")
-            )
+            acquiring = spawn(process.put(["sim:drv", "acquire"], "Acquire"))
             await asyncio.wait_for(scan, 30)
             assert process.get_block("DET").state.value == "Finished"
             assert pos.processed.value == 150  # every position tagged a frame

@@ -9,7 +9,7 @@ import pytest
 from malcolm.core import AlarmSeverity, AlarmStatus
 from malcolm.io import DisconnectedError
 
-from .conftest import run, started, until
+from .conftest import run, spawn, started, until
 
 #: seconds within which a lost IOC shows, and a restarted one is back
 LOST_WITHIN = 5.0
@@ -24,7 +24,7 @@ def test_killing_the_ioc_invalidates_and_restarting_recovers(ioc):
             assert drv.health.value == "OK"
             m1 = process.get_block("M1")
             # a move of 5 s at 10 mm/s: its put is in flight when the IOC dies
-            moving = asyncio.ensure_future(process.put(["M1", "position"], 50.0))
+            moving = spawn(process.put(["M1", "position"], 50.0))
             await until(lambda: m1.doneMoving.value is False, what="M1 moving")
 
             ioc.kill()

@@ -11,7 +11,7 @@ import numpy as np
 from malcolm.config.build import build_definition
 from malcolm.core import Process
 
-from .conftest import PREFIX, run, until
+from .conftest import PREFIX, run, spawn, until
 from .test_detmgr_scans import (
     last_per_uid,
     line,
@@ -22,13 +22,17 @@ from .test_detmgr_scans import (
 
 
 async def build_trajectory(process: Process, start: int, stop: int, ms: int) -> None:
-    """Points ``start..stop-1`` of a line as the trajectory, by PV puts."""
+    """Points ``start..stop-1`` of a line as the trajectory, by PV puts.
+
+    Every array the build reads is written: the IOC is the session's, and
+    another test's trajectory (a motor manager's, with -1 indices at its
+    turnarounds that trigger nothing) is still in the ones not written."""
     n = stop - start
     put = process.put
     await put(["TRAJ", "positionsA"], np.arange(start, stop, dtype=float))
     await put(["TRAJ", "positionsB"], np.zeros(n))
     await put(["TRAJ", "times"], np.full(n, ms * 1000, dtype=np.int32))  # us
-    # each profile point triggers the frame of its scan point
+    # each profile point triggers one frame, of its scan point's index
     await put(["TRAJ", "pointIndices"], np.arange(start, stop, dtype=np.int32))
     await put(["TRAJ", "numPoints"], n)
     await process.post(["TRAJ", "buildProfile"])
@@ -45,8 +49,8 @@ def test_external_pause_seek_back_rearms_at_the_point(ioc, tmp_path):
             params = {"generator": line(total, 0.02), "fileDir": str(tmp_path)}
             await process.post(["DET", "configure"], params)
             await build_trajectory(process, 0, total, 20)
-            running = asyncio.ensure_future(process.post(["DET", "run"]))
-            moving = asyncio.ensure_future(process.post(["TRAJ", "executeProfile"]))
+            running = spawn(process.post(["DET", "run"]))
+            moving = spawn(process.post(["TRAJ", "executeProfile"]))
             await until(lambda: det.completedSteps.value >= 12, what="12 frames")
             # the motion stops first (the motion controller's pause), then
             # the detector goes back to point 5 and waits for its trigger

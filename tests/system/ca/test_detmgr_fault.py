@@ -8,7 +8,7 @@ import pytest
 
 from malcolm.core import MalcolmError
 
-from .conftest import PREFIX, run, until
+from .conftest import PREFIX, run, spawn, until
 from .test_detmgr_scans import line, make_manager, read_file, started
 
 #: seconds within which a lost IOC shows, and a restarted one is back
@@ -24,7 +24,7 @@ def test_a_killed_ioc_faults_the_run_naming_it_and_reset_recovers(ioc, tmp_path)
         try:
             params = {"generator": line(500, 0.01), "fileDir": str(tmp_path)}
             await process.post(["DET", "configure"], params)
-            running = asyncio.ensure_future(process.post(["DET", "run"]))
+            running = spawn(process.post(["DET", "run"]))
             await until(lambda: det.completedSteps.value >= 3, what="3 frames")
 
             ioc.kill()

@@ -17,7 +17,7 @@ import pytest
 from malcolm.config.build import build_definition
 from malcolm.core import Process
 
-from .conftest import BLOCKS, PREFIX, run, until
+from .conftest import BLOCKS, PREFIX, run, spawn, until
 
 
 def line(size: int, duration: float = 0.002) -> dict[str, Any]:
@@ -170,10 +170,12 @@ def test_external_frames_come_from_the_trajectory(ioc, tmp_path):
             await put(["TRAJ", "positionsA"], np.linspace(0.0, 1.0, 6))
             await put(["TRAJ", "positionsB"], np.zeros(6))
             await put(["TRAJ", "times"], np.full(6, 10_000, dtype=np.int32))
+            # every array the build reads: the session's IOC keeps another
+            # test's (a motor manager's -1 indices trigger nothing)
             await put(["TRAJ", "pointIndices"], np.arange(6, dtype=np.int32))
             await put(["TRAJ", "numPoints"], 6)
             await process.post(["TRAJ", "buildProfile"])
-            running = asyncio.ensure_future(process.post(["DET", "run"]))
+            running = spawn(process.post(["DET", "run"]))
             await process.post(["TRAJ", "executeProfile"])
             await asyncio.wait_for(running, 10)
             assert det.state.value == "Finished" and det.completedSteps.value == 6
@@ -194,7 +196,7 @@ def test_pause_seek_back_and_resume_give_one_frame_per_point(ioc, tmp_path):
         try:
             params = {"generator": line(total, 0.01), "fileDir": str(tmp_path)}
             await process.post(["DET", "configure"], params)
-            running = asyncio.ensure_future(process.post(["DET", "run"]))
+            running = spawn(process.post(["DET", "run"]))
             await until(lambda: det.completedSteps.value >= 15, what="15 frames")
             await process.post(["DET", "pause"], {"lastGoodStep": 8})
             assert det.state.value == "Paused" and det.completedSteps.value == 8
@@ -230,7 +232,7 @@ def test_abort_stops_and_closes_the_file_and_reset_scans_again(ioc, tmp_path):
         try:
             params = {"generator": line(200, 0.01), "fileDir": str(tmp_path)}
             await process.post(["DET", "configure"], params)
-            running = asyncio.ensure_future(process.post(["DET", "run"]))
+            running = spawn(process.post(["DET", "run"]))
             await until(lambda: det.completedSteps.value >= 3, what="3 frames")
             await process.post(["DET", "abort"])
             assert det.state.value == "Aborted"

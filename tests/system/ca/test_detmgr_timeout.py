@@ -10,7 +10,7 @@ import pytest
 
 from malcolm.core import MalcolmError
 
-from .conftest import run, until
+from .conftest import run, spawn, until
 from .test_detmgr_external import build_trajectory
 from .test_detmgr_scans import line, make_manager, started
 
@@ -31,7 +31,7 @@ def test_external_run_whose_triggers_stop_faults_naming_the_frame(ioc, tmp_path)
             # the motion makes the triggers of points 0..3 only: frame 5's
             # trigger never comes
             await build_trajectory(process, 0, 4, 20)
-            running = asyncio.ensure_future(process.post(["DET", "run"]))
+            running = spawn(process.post(["DET", "run"]))
             await process.post(["TRAJ", "executeProfile"])
             await until(lambda: det.completedSteps.value >= 4, what="4 frames")
             # a generous ceiling for "it happens": the bound is 1 s

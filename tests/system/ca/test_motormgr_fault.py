@@ -9,7 +9,7 @@ import pytest
 
 from malcolm.core import MalcolmError
 
-from .conftest import PREFIX, run, until
+from .conftest import PREFIX, run, spawn, until
 from .motormgr import MRI, line, manager_process
 
 #: seconds within which a lost IOC shows, and a restarted one is back
@@ -28,7 +28,7 @@ def test_the_ioc_killed_mid_run_faults_and_reset_recovers(ioc, tmp_path):
             await process.post(
                 [MRI, "configure"], {"generator": scan, "fileDir": str(tmp_path)}
             )
-            running = asyncio.ensure_future(process.post([MRI, "run"]))
+            running = spawn(process.post([MRI, "run"]))
             await until(lambda: block.completedSteps.value >= 10, 20, "10 steps")
             ioc.kill()
             with pytest.raises(MalcolmError) as info:

@@ -10,7 +10,7 @@ import pytest
 
 from malcolm.core import AbortedError
 
-from .conftest import run, until
+from .conftest import run, spawn, until
 from .motormgr import MRI, last_rows, line, manager_process, read_file
 
 
@@ -27,7 +27,7 @@ def test_pause_seek_back_and_resume_redo_the_points(ioc, tmp_path):
             await process.post(
                 [MRI, "configure"], {"generator": scan, "fileDir": str(tmp_path)}
             )
-            running = asyncio.ensure_future(process.post([MRI, "run"]))
+            running = spawn(process.post([MRI, "run"]))
             await until(lambda: block.completedSteps.value >= 60, 20, "60 steps")
             await process.post([MRI, "pause"], {"lastGoodStep": 30})
             assert block.state.value == "Paused"
@@ -77,7 +77,7 @@ def test_abort_stops_the_trajectory_and_the_motors(ioc, tmp_path):
             await process.post(
                 [MRI, "configure"], {"generator": scan, "fileDir": str(tmp_path)}
             )
-            running = asyncio.ensure_future(process.post([MRI, "run"]))
+            running = spawn(process.post([MRI, "run"]))
             await until(lambda: block.completedSteps.value >= 20, 20, "20 steps")
             await process.post([MRI, "abort"])
             assert block.state.value == "Aborted"

@@ -14,7 +14,7 @@ import numpy as np
 from malcolm.parts.detector_manager import MIN_EXPOSURE
 from malcolm.sim.beamline_ioc.pace import MIN_PERIOD
 
-from .conftest import follow, run, started, until
+from .conftest import follow, run, spawn, started, until
 
 POINTS = 2000
 
@@ -58,10 +58,10 @@ def test_every_point_makes_a_frame_and_progress_comes_at_a_bounded_rate(ioc, tmp
             await put(["DRV", "arrayCallbacks"], True)
             hdf, pos = process.get_block("HDF"), process.get_block("POS")
             drv, traj = process.get_block("DRV"), process.get_block("TRAJ")
-            capturing = asyncio.ensure_future(put(["HDF", "capture"], True))
-            tagging = asyncio.ensure_future(put(["POS", "start"], True))
+            capturing = spawn(put(["HDF", "capture"], True))
+            tagging = spawn(put(["POS", "start"], True))
             await until(lambda: hdf.capture.value and pos.running.value, what="armed")
-            acquiring = asyncio.ensure_future(put(["DRV", "acquire"], "Acquire"))
+            acquiring = spawn(put(["DRV", "acquire"], "Acquire"))
             await until(lambda: drv.detectorState.value == "Acquire", what="acquiring")
             scanned = follow(process, "TRAJ", "pointsScanned")
             captured = follow(process, "HDF", "numCaptured")
