@@ -160,6 +160,14 @@ def test_gda_reads(ctx):
     assert "uniqueid" in datasets["value"]
 
 
+def wait_steps(ctx: Any, steps: int, timeout: float = 60) -> None:
+    """Until the scan has done ``steps`` points (fails after ``timeout``)."""
+    deadline = time.monotonic() + timeout
+    while ctx.get(f"{SCAN}.completedSteps", timeout=10)["value"] < steps:
+        assert time.monotonic() < deadline, f"{SCAN} did not reach step {steps}"
+        time.sleep(0.02)
+
+
 def ready(ctx: Any) -> None:
     """Back to where configure is allowed, whatever an earlier test left."""
     now = state(ctx)
@@ -223,10 +231,7 @@ def test_ioc_killed_mid_run_faults_naming_the_child(beamline, ctx):
     ioc_pid = beamline.child_pids()["IOC"]
     with ThreadPoolExecutor(1) as pool:
         running = pool.submit(call, ctx, "run")
-        deadline = time.monotonic() + 60
-        while ctx.get(f"{SCAN}.completedSteps", timeout=10)["value"] < 5:
-            assert time.monotonic() < deadline
-            time.sleep(0.02)
+        wait_steps(ctx, 5)
         os.kill(ioc_pid, signal.SIGKILL)
         with pytest.raises(RemoteError):
             running.result(timeout=60)
@@ -269,10 +274,7 @@ def test_frames_that_stop_coming_fault_naming_det_and_the_frame(beamline, ctx):
     )
     with ThreadPoolExecutor(1) as pool:
         running = pool.submit(call, ctx, "run")
-        deadline = time.monotonic() + 60
-        while ctx.get(f"{SCAN}.completedSteps", timeout=10)["value"] < 5:
-            assert time.monotonic() < deadline
-            time.sleep(0.02)
+        wait_steps(ctx, 5)
         subprocess.run(
             [sys.executable, "-c", cut],
             env={**os.environ, **ca_environment(beamline.ca_port)},
