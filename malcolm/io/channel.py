@@ -17,6 +17,12 @@ What a channel promises:
   timeStamp); ``await put(value, timeout)`` returns once the put has
   completed (a Channel Access put with callback). A put's timeout stops the
   wait, never the put (docs/embedding.md).
+- ``await current(timeout)`` is a get whose answer the subscription has
+  caught up with: it returns once the subscribers were given that reading
+  (or a newer one). A backend gives each event of a name to all its
+  channels of that name on one loop in one loop callback, so by then every
+  channel of the name on the loop (every attribute bound to it) holds it
+  too. An action that waits for a PV the block also shows uses it.
 - ``subscribe(callback)`` calls ``callback(reading)`` on every change, and
   first after every (re)connection; ``watch_connection(callback)`` calls
   ``callback(state, message)`` when the connection state changes. Both
@@ -34,6 +40,8 @@ from __future__ import annotations
 import asyncio
 import enum
 import logging
+import math
+import sys
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -134,6 +142,10 @@ class Channel(ABC):
         self._subscribers: list[ValueCallback] = []
         self._watchers: list[ConnectionCallback] = []
         self._waiters: list[asyncio.Future[None]] = []
+        #: the last reading given to the subscribers while connected
+        self._latest: Reading | None = None
+        #: ``current`` calls waiting for the subscription to catch up
+        self._catching_up: list[tuple[Reading, asyncio.Future[None]]] = []
 
     @property
     def name(self) -> str:
@@ -194,6 +206,47 @@ class Channel(ABC):
     async def get(self) -> Reading:
         """The current reading; DisconnectedError if not connected."""
 
+    @property
+    def latest(self) -> Reading | None:
+        """The last reading the subscribers were given (None when not
+        connected)."""
+        return self._latest
+
+    async def current(self, timeout: float | None = None) -> Reading:
+        """The reading now (a ``get``), once the subscribers have been given it.
+
+        A get's answer may overtake the monitor events of the changes before
+        it (Channel Access sends them from different queues), so what follows
+        the subscription can still show an older value when ``get`` returns.
+        This gets, then waits until the subscribers were given a reading with
+        the got value and alarm, or a later timeStamp, and returns the latest
+        they were given. Every channel of the same name on this loop was given
+        it in the same loop callback (backends deliver so), so every attribute
+        bound to the name shows it too. After ``timeout`` seconds raises
+        ChannelTimeoutError; DisconnectedError if the connection is lost.
+        """
+        target = await self.get()
+        latest = self._latest
+        if latest is None or not caught_up(latest, target):
+            assert self._loop is not None
+            waiter: asyncio.Future[None] = self._loop.create_future()
+            entry = (target, waiter)
+            self._catching_up.append(entry)
+            try:
+                await asyncio.wait_for(waiter, timeout)
+            except TimeoutError:
+                raise ChannelTimeoutError(
+                    f"{self.read}: no monitor event brought {target.value!r}"
+                    f" (what a get read) within {timeout} s"
+                ) from None
+            finally:
+                _discard(self._catching_up, entry)
+        latest = self._latest
+        if latest is None:  # lost since it caught up
+            self.check_connected()
+            return target
+        return latest
+
     async def put(self, value: Any, timeout: float | None = None) -> None:
         """Write ``value`` and wait until the put has completed.
 
@@ -242,11 +295,13 @@ class Channel(ABC):
         self._message = "closed"
         self._subscribers.clear()
         self._watchers.clear()
+        self._latest = None
         for waiter in self._waiters:
             if not waiter.done():
                 waiter.set_exception(
                     ChannelClosedError(f"{self.name}: closed while connecting")
                 )
+        self._stop_catching_up(ChannelClosedError(f"{self.name}: closed"))
         await self._close()
 
     @abstractmethod
@@ -269,6 +324,13 @@ class Channel(ABC):
         call_threadsafe(loop, func, *args)
 
     def _deliver(self, reading: Reading) -> None:
+        """Give ``reading`` to the subscribers (on the loop). Backends call
+        this for every channel of one name in the same loop callback."""
+        if self._state is ConnectionState.CONNECTED:
+            self._latest = reading
+            for target, waiter in self._catching_up:
+                if not waiter.done() and caught_up(reading, target):
+                    waiter.set_result(None)
         for callback in list(self._subscribers):
             try:
                 callback(reading)
@@ -284,6 +346,9 @@ class Channel(ABC):
             return
         self._state = state
         self._message = "" if state is ConnectionState.CONNECTED else message
+        if state is not ConnectionState.CONNECTED:
+            self._latest = None
+            self._stop_catching_up(DisconnectedError(f"{self.name}: {message}"))
         if state is ConnectionState.CONNECTED:
             for waiter in self._waiters:
                 if not waiter.done():
@@ -293,6 +358,11 @@ class Channel(ABC):
                 callback(state, self._message)
             except Exception:
                 log.exception("%s: connection watcher %r raised", self.name, callback)
+
+    def _stop_catching_up(self, error: ChannelError) -> None:
+        for _, waiter in self._catching_up:
+            if not waiter.done():
+                waiter.set_exception(error)
 
     # ---- checks
     def _check_open(self) -> None:
@@ -328,6 +398,34 @@ class Backend(ABC):
     @abstractmethod
     async def close(self) -> None:
         """Close every channel this backend made (the process is stopping)."""
+
+
+def caught_up(seen: Reading, target: Reading) -> bool:
+    """Whether ``seen`` (given to subscribers) is as new as ``target`` (a
+    get's answer): the same value and alarm, or a later timeStamp."""
+    later, earlier = seen.timeStamp, target.timeStamp
+    if (later.secondsPastEpoch, later.nanoseconds) > (
+        earlier.secondsPastEpoch,
+        earlier.nanoseconds,
+    ):
+        return True
+    return seen.alarm == target.alarm and same_value(seen.value, target.value)
+
+
+def same_value(a: Any, b: Any) -> bool:
+    """``a == b`` for readings' values (arrays element by element, NaN is NaN)."""
+    np = sys.modules.get("numpy")  # no array exists unless numpy is loaded
+    if np is not None and (isinstance(a, np.ndarray) or isinstance(b, np.ndarray)):
+        try:
+            return bool(np.array_equal(a, b, equal_nan=True))
+        except TypeError:  # not numbers: equal_nan does not apply
+            return bool(np.array_equal(a, b))
+    if isinstance(a, float) and isinstance(b, float):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    try:
+        return bool(a == b)
+    except Exception:
+        return False
 
 
 def _discard(items: list[Any], item: Any) -> None:

@@ -14,6 +14,12 @@ puts ``value`` (default 1) to ``pv`` with completion, then waits until
 the block, the method, the status and, with ``message_pv``, what that PV
 says. Its channels connect in Reset and report lost connections in
 ``health`` like an attribute's.
+
+The status it judges is what the block's own attributes are given: after
+the put it reads the status with ``Channel.current`` (a get, then the wait
+for the monitor to bring that value), and then follows the monitor. So when
+the method returns, every attribute of the process bound to ``status_pv``
+(a motor's ``doneMoving`` for ``stop``) shows the good status already.
 """
 
 from __future__ import annotations
@@ -188,13 +194,17 @@ class CAActionPart(Part):
         changed: asyncio.Queue[Reading] = asyncio.Queue()
         end = status.subscribe(changed.put_nowait)
         try:
+            loop = asyncio.get_running_loop()
             try:
                 await self._channels["put"].put(self.value, self.timeout)
-                reading = await status.get()
+                deadline = loop.time() + self.timeout
+                # what the get reads, once the monitor (so every attribute
+                # bound to the status PV) has caught up with it
+                reading = await status.current(self.timeout)
             except ChannelError as e:  # the same kind, naming the method
                 raise type(e)(f"{self._mri}.{self.name}: {e}") from None
-            loop = asyncio.get_running_loop()
-            deadline = loop.time() + self.timeout
+            while not changed.empty():  # older than (or as old as) ``reading``
+                changed.get_nowait()
             while str(reading.value) != self.good:
                 if self.bad is not None and str(reading.value) == self.bad:
                     raise self._fail(await self._why(reading.value))

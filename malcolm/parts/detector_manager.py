@@ -12,11 +12,11 @@ position plugin (``ADCore.PositionPlugin``) and an HDF5 writer
   put), then **arms**: the plugin running and the writer capturing, and in
   External mode the driver acquiring, waiting for triggers;
 - **run** starts the driver (Internal) and waits for the writer's capture,
-  the plugin and the driver to finish; progress is the frames written. In
-  External mode a run that sees no new frame within the frame timeout
-  (configure's ``frameTimeout``, else 3 x the longest point + 10 s) stops
-  the children and fails, naming the frame it waited for: the manager
-  goes to Fault (a trigger was lost);
+  the plugin and the driver to finish; progress is the frames written. A
+  run that sees no new frame within the frame timeout (configure's
+  ``frameTimeout``, else 3 x the longest point + 10 s) stops the children
+  and fails, saying what is known (:func:`stall_message`): the manager goes
+  to Fault;
 - **pause** stops the driver and the plugins (the file is closed); **seek**
   to step k re-arms at k: the plugin's ``idStart`` is k + 1 and its
   positions start at point k, the writer appends to the file;
@@ -66,13 +66,17 @@ MIN_EXPOSURE = 0.0001
 XML_BATCH = 2500
 #: seconds to wait for a child to show it is armed or stopped
 SETTLE_TIMEOUT = 10.0
-#: the frame timeout of an External run (configure's ``frameTimeout`` 0):
+#: the frame timeout of a run (configure's ``frameTimeout`` 0):
 #: this many times the scan's longest point, plus the margin below, for the
 #: motion's run-up and turnarounds (the simulated motors' 0.1 s ACCL makes a
 #: snake's turnaround 0.2 s; a real controller's may take seconds)
 FRAME_TIMEOUT_FACTOR = 3.0
 #: seconds added to the frame timeout (see FRAME_TIMEOUT_FACTOR)
 FRAME_TIMEOUT_MARGIN = 10.0
+#: areaDetector ``DetectorState_RBV`` values of a driver that is not
+#: acquiring (any other: it is; its ``Acquire`` demand may still read
+#: Acquire after a Stop, so the state is what tells)
+STOPPED_STATES = frozenset({"Idle", "Error", "Aborting", "Aborted", "Disconnected"})
 #: HDF5 paths the writer uses
 DATA_PATH = "/entry/data"
 UID_PATH = "/entry/uid"
@@ -86,18 +90,62 @@ _batch_xml = functools.lru_cache(maxsize=8)(positions_xml)
 class FrameClock:
     """When the last new frame of a run was seen: ``count`` frames of the
     scan so far (``first`` at the run's start), at loop time ``since``
-    (wall-clock time ``wall``)."""
+    (wall-clock time ``wall``), when the driver's frame counter read
+    ``made`` (its ``arrayCounter``)."""
 
-    def __init__(self, first: int) -> None:
+    def __init__(self, first: int, made: int = 0) -> None:
         self.first = self.count = first
+        self.made = made
         self.since = asyncio.get_running_loop().time()
         self.wall = time.time()
 
-    def saw(self, count: int) -> None:
+    def saw(self, count: int, made: int = 0) -> None:
         if count > self.count:
             self.count = count
+            self.made = made
             self.since = asyncio.get_running_loop().time()
             self.wall = time.time()
+
+
+def stall_message(
+    mri: str,
+    bound: float,
+    frames: FrameClock,
+    mode: str,
+    detector_state: str,
+    acquiring: bool,
+    made: int = 0,
+    counted_by: str = "the writer",
+    callbacks: bool = True,
+) -> str:
+    """What a run that saw no new frame within ``bound`` s knows: the frame
+    it waited for, the time waited, the last frame that came (and when), the
+    trigger mode, whether the driver still acquires and the frames it made
+    since (``made``: its counter's advance; ``counted_by`` counts the run's
+    frames; ``callbacks``: the driver's arrayCallbacks); and the cause where
+    that tells it: frames made since, they do not reach ``counted_by``;
+    none made and not acquiring, the detector stopped; none made, External
+    and acquiring, the triggers are not arriving."""
+    waited = frames.count + 1
+    when = time.strftime("%H:%M:%S UTC", time.gmtime(frames.wall))
+    if frames.count > frames.first:
+        since = f"frame {frames.count}, the last that came ({when})"
+    else:
+        since = f"the run's start ({when}; no frame of this run came)"
+    driver = "still acquiring" if acquiring else "not acquiring"
+    text = (
+        f"{mri}: no frame {waited} (uniqueId {waited}) within {bound:g} s of"
+        f" {since}; trigger mode {mode}; the driver is {driver}"
+        f" (detectorState {detector_state}) and made {max(made, 0)} frames since"
+    )
+    if made > 0:
+        off = "" if callbacks else " (the driver's arrayCallbacks is off)"
+        return f"{text}: its frames do not reach {counted_by}{off}"
+    if not acquiring:
+        return f"{text}: the detector stopped before the run's frames were taken"
+    if mode == "External":
+        return f"{text}: the External triggers are not arriving"
+    return text
 
 
 class DetectorManagerPart(Part):
@@ -136,7 +184,7 @@ class DetectorManagerPart(Part):
         self._topping = False
         self._file = ""
         self._mode = ""  # the trigger mode of the scan configured
-        self._frame_timeout = 0.0  # seconds without a frame (External) = Fault
+        self._frame_timeout = 0.0  # seconds without a frame = Fault
 
     # ---- fields
     def setup(self, registrar: PartRegistrar) -> None:
@@ -162,7 +210,7 @@ class DetectorManagerPart(Part):
             "frameTimeout",
             NumberMeta(
                 "float64",
-                "External: seconds without a new frame before the run faults"
+                "Seconds without a new frame before the run faults"
                 f" (0: {FRAME_TIMEOUT_FACTOR:g} x the longest point"
                 f" + {FRAME_TIMEOUT_MARGIN:g} s)",
             ),
@@ -296,7 +344,7 @@ class DetectorManagerPart(Part):
 
     @staticmethod
     def frame_timeout(device: Any) -> float:
-        """Seconds an External run waits for its next frame: ``frameTimeout``,
+        """Seconds a run waits for its next frame: ``frameTimeout``,
         else :data:`FRAME_TIMEOUT_FACTOR` x the scan's longest point +
         :data:`FRAME_TIMEOUT_MARGIN`."""
         given = float(device.params.get("frameTimeout") or 0.0)
@@ -533,10 +581,10 @@ class DetectorManagerPart(Part):
             # plugin's ends when its positions are used up: not a frame count)
             busy = [self._busy[k] for k in ("driver", "writer") if k in self._busy]
             counter = self.hdf.numCaptured if self._file else self.pos.processed
-            frames = FrameClock(start)
+            frames = FrameClock(start, self._made())
 
             def on_frames(n: Any) -> None:
-                frames.saw(start + int(n))
+                frames.saw(start + int(n), self._made())
                 task.report_progress(min(start + int(n), end))
 
             ids = [
@@ -544,10 +592,7 @@ class DetectorManagerPart(Part):
                 task.subscribe(self.pos.positions, self._top_up, task),
             ]
             try:
-                if self.external:
-                    await self._until_done_or_stalled(task, busy, frames)
-                else:
-                    await task.wait_all(*busy)
+                await self._until_done_or_stalled(task, busy, frames)
             finally:
                 for sid in ids:
                     task.unsubscribe(sid)
@@ -564,12 +609,19 @@ class DetectorManagerPart(Part):
             )
         task.report_progress(end)
 
+    def _made(self) -> int:
+        """The driver's frame counter (its arrayCounter)."""
+        try:
+            return int(self.drv.arrayCounter.value)
+        except (TypeError, ValueError):
+            return 0
+
     async def _until_done_or_stalled(
         self, task: Task, busy: list[Any], frames: FrameClock
     ) -> None:
         """Wait for the run's ``busy`` puts; if no new frame comes within the
-        frame timeout (a trigger lost), stop the children and raise an error
-        naming the detector, the frame waited for and the time."""
+        frame timeout, stop the children and raise an error saying what is
+        known (:func:`stall_message`)."""
         bound = self._frame_timeout or FRAME_TIMEOUT_MARGIN
         done = asyncio.ensure_future(task.wait_all(*busy))
         loop = asyncio.get_running_loop()
@@ -585,16 +637,21 @@ class DetectorManagerPart(Part):
         finally:
             if not done.done():
                 done.cancel()
-        waited = frames.count + 1
+        state = str(self.drv.detectorState.value)
+        message = stall_message(
+            self._mri,
+            bound,
+            frames,
+            self._mode or self.trigger_mode.value,
+            state,
+            acquiring=state not in STOPPED_STATES,
+            made=self._made() - frames.made,
+            counted_by="the writer" if self._file else "the position plugin",
+            callbacks=bool(self.drv.arrayCallbacks.value),
+        )
         with contextlib.suppress(Exception):
             await self._stop_all(task)
-        since = "the last" if frames.count > frames.first else "the run's start"
-        raise MalcolmError(
-            f"{self._mri}: no frame {waited} (uniqueId {waited}) within"
-            f" {bound:g} s of {since}"
-            f" ({time.strftime('%H:%M:%S UTC', time.gmtime(frames.wall))}):"
-            " External triggers lost?"
-        )
+        raise MalcolmError(message)
 
     @RunnableDevice.PostRunArmed
     async def post_run_armed(self, task: Task, device: Any) -> None:

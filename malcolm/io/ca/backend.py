@@ -7,6 +7,15 @@ readback its first value; it is DISCONNECTED (and its pending gets and puts
 fail) as soon as any of them is lost, and CONNECTED again when they are
 back: CA keeps searching, and re-sends the subscriptions' first events.
 
+Every channel of a process's loop that names a PV hears it through one
+:class:`PVFanout`, the link's one listener for that loop: each event of the
+PV (a value, a connection change, control information) crosses from libca's
+thread to the loop once, and there goes to all those channels in the same
+loop callback. So when any channel's subscriber sees a value (say an
+action waiting for ``DMOV``), every other channel of the PV on the loop
+(the block's ``doneMoving``) has been given it too, before any task that
+the subscriber woke runs (docs/channels.md).
+
 Values are given in the form the channel's ``default`` asks for (what the
 attribute's meta holds): a bool for a bo/bi record read by a ``ca.Bool``, an
 enum's label for a ``ca.Enum``, the text of a char waveform for a
@@ -27,6 +36,7 @@ import numpy as np
 from epics import dbr
 
 from malcolm.core import Alarm, AlarmSeverity, AlarmStatus, TimeStamp
+from malcolm.core.threads import call_threadsafe
 
 from ..channel import (
     Backend,
@@ -40,7 +50,7 @@ from ..channel import (
 )
 from .link import Link, Payload, link
 
-__all__ = ["GET_TIMEOUT", "PyepicsBackend", "PyepicsChannel"]
+__all__ = ["GET_TIMEOUT", "PVFanout", "PyepicsBackend", "PyepicsChannel"]
 
 log = logging.getLogger(__name__)
 
@@ -104,8 +114,100 @@ def info_of(ftype: int | None, md: dict[str, Any]) -> dict[str, Any]:
     return found
 
 
+class PVFanout:
+    """The one listener of a :class:`~.link.Link` for the channels of one
+    asyncio loop: hands each event to the loop once (one
+    :func:`~malcolm.core.threads.call_threadsafe` hop) and there gives it to
+    every channel in turn, in one loop callback.
+
+    It keeps what it last gave on the loop (connected, control information,
+    value), so a channel that joins later is told exactly that, in order
+    with the events still on their way to the loop.
+    """
+
+    def __init__(self, pv: Link, loop: asyncio.AbstractEventLoop) -> None:
+        self.link = pv
+        self.loop = loop
+        self.channels: list[PyepicsChannel] = []
+        self._up = False
+        self._info: tuple[int | None, dict[str, Any]] | None = None
+        self._value: Payload | None = None
+
+    # ---- from libca's threads (or the loop's, when attaching)
+    def link_connection(self, link: Link, up: bool) -> None:
+        self._hop(self._connection, up)
+
+    def link_value(self, link: Link, payload: Payload) -> None:
+        self._hop(self._value_event, payload)
+
+    def link_info(self, link: Link, payload: Payload) -> None:
+        self._hop(self._info_event, link.ftype, payload[1])
+
+    def _hop(self, func: Callable[..., None], *args: Any) -> None:
+        if not self.loop.is_closed():
+            call_threadsafe(self.loop, func, *args)
+
+    # ---- on the loop: one callback per event, every channel
+    def _connection(self, up: bool) -> None:
+        self._up = up
+        if not up:
+            self._info = self._value = None
+        for channel in list(self.channels):
+            channel._logged(channel._connection, self.link.name, up)
+
+    def _info_event(self, ftype: int | None, md: dict[str, Any]) -> None:
+        self._info = (ftype, md)
+        for channel in list(self.channels):
+            channel._logged(channel._info_event, self.link.name, ftype, md)
+
+    def _value_event(self, payload: Payload) -> None:
+        self._value = payload
+        for channel in list(self.channels):
+            if channel.read == self.link.name:
+                channel._logged(channel._value, payload)
+
+    # ---- channels joining and leaving (on the loop)
+    def add(self, channel: PyepicsChannel) -> None:
+        """Give ``channel`` this PV's events from now on; tell it what the
+        loop knows already. The first channel attaches to the link."""
+        self.channels.append(channel)
+        if len(self.channels) == 1:
+            self.link.attach(self)  # tells what it knows: through _hop, at once
+            return
+        if self._up:
+            channel._logged(channel._connection, self.link.name, True)
+            if self._info is not None:
+                channel._logged(channel._info_event, self.link.name, *self._info)
+            if self._value is not None and channel.read == self.link.name:
+                channel._logged(channel._value, self._value)
+
+    def remove(self, channel: PyepicsChannel) -> None:
+        """Stop telling ``channel``; the last one out detaches from the link."""
+        if channel in self.channels:
+            self.channels.remove(channel)
+        if not self.channels:
+            _fanouts.pop((self.link.name, self.loop), None)
+            self.link.detach(self)
+
+
+#: (PV name, loop) -> the fanout of that PV's channels on that loop
+_fanouts: dict[tuple[str, asyncio.AbstractEventLoop], PVFanout] = {}
+
+
+def fanout(pv: Link, loop: asyncio.AbstractEventLoop) -> PVFanout:
+    """The one fanout of ``pv`` for ``loop`` (called on ``loop``)."""
+    key = (pv.name, loop)
+    found = _fanouts.get(key)
+    if found is None:
+        found = _fanouts[key] = PVFanout(pv, loop)
+    return found
+
+
 class PyepicsChannel(Channel):
-    """A CA channel: monitors ``read``, puts with callback to ``write``."""
+    """A CA channel: monitors ``read``, puts with callback to ``write``.
+
+    Its PVs' events come from their :class:`PVFanout` of the channel's loop,
+    on the loop."""
 
     def __init__(self, read: str, write: str | None, default: Any) -> None:
         super().__init__(read, write)
@@ -120,17 +222,6 @@ class PyepicsChannel(Channel):
         self._pending: set[asyncio.Future[Any]] = set()
         self._ever = False  # connected once: a loss is "connection lost"
 
-    # ---- from libca's threads
-    def link_connection(self, link: Link, up: bool) -> None:
-        self._on_loop(self._connection, link.name, up)
-
-    def link_value(self, link: Link, payload: Payload) -> None:
-        if link.name == self.read:
-            self._on_loop(self._value, payload)
-
-    def link_info(self, link: Link, payload: Payload) -> None:
-        self._on_loop(self._info_event, link.name, link.ftype, payload[1])
-
     def _on_loop(self, func: Callable[..., None], *args: Any) -> None:
         super()._on_loop(self._logged, func, *args)
 
@@ -140,7 +231,7 @@ class PyepicsChannel(Channel):
         except Exception:
             log.exception("%s: handling a Channel Access event failed", self.name)
 
-    # ---- on the loop
+    # ---- on the loop (from the fanouts, or a get's or put's answer)
     def _connection(self, name: str, up: bool) -> None:
         self._up[name] = up
         if up:
@@ -248,8 +339,9 @@ class PyepicsChannel(Channel):
 
     # ---- the protocol
     async def _start(self) -> None:
+        assert self._loop is not None
         for pv in self._links.values():
-            pv.attach(self)
+            fanout(pv, self._loop).add(self)
 
     async def _info(self) -> ChannelInfo:
         read = self._infos.get(self.read, {})
@@ -311,8 +403,12 @@ class PyepicsChannel(Channel):
 
     async def _close(self) -> None:
         self._fail_pending(DisconnectedError(f"{self.name}: closed"))
+        if self._loop is None:
+            return  # never started
         for pv in self._links.values():
-            pv.detach(self)
+            found = _fanouts.get((pv.name, self._loop))
+            if found is not None:
+                found.remove(self)
 
 
 class PyepicsBackend(Backend):
