@@ -7,14 +7,26 @@ p4p calls a SharedPV's ``put`` and ``rpc`` handlers in its own thread.
 but the hand-over, so the handler itself runs on the loop (the rule of
 docs/channels.md: block state changes there only).
 
-There, :func:`start_op` runs the operation's coroutine as a Task whose
-first step is taken at once, in the handler (an *eager* start, what
-``asyncio.eager_task_factory`` does from Python 3.12): a put or call that
-never waits (most of them) has answered the client before the handler
-returns, with no turn of the loop in between; one that waits goes on in
-its Task as any other. The step runs with the Task as the current task,
-in the Task's context, so ``asyncio.current_task()``, cancellation and
-context variables behave as in a plain Task.
+There, :class:`OpRunner` takes the operation's first step at once, in the
+handler (an *eager* start, what ``asyncio.eager_task_factory`` does from
+Python 3.12): a put or call that never waits (most of them) has answered
+the client before the handler returns, with no turn of the loop in
+between; one that waits goes on in a Task as any other.
+
+The first step runs as a step of the runner's *standing* Task, current
+and in that Task's context, so ``asyncio.current_task()``, cancellation
+and context variables behave as in a plain Task. An operation that ends
+in that step leaves the standing Task waiting for the next one: no Task
+is made, scheduled, stepped and finished per operation (on this machine
+that bookkeeping, cold between two client requests, was half of what a
+served call and put added to the round trip). An operation that waits
+keeps the standing Task as its own (it goes on in it; a new standing
+Task is made), so the Task a waiting operation saw in its first step is
+the one that runs, and can be cancelled, to its end. An operation that
+ends at once must therefore not keep its ``current_task()`` to use after
+it returned (none in malcolm does: they compare it, or use it while they
+run); one that leaves a context variable set ends the standing Task (the
+next operation gets a clean context).
 """
 
 from __future__ import annotations
@@ -27,7 +39,7 @@ from typing import Any
 
 from p4p.server.raw import SharedPV
 
-__all__ = ["LoopSharedPV", "error_text", "start_op"]
+__all__ = ["LoopSharedPV", "OpRunner", "error_text", "start_op"]
 
 log = logging.getLogger(__name__)
 
@@ -75,24 +87,142 @@ def start_op(
     op: Any, coro: Coroutine[Any, Any, None], tasks: set[asyncio.Task[Any]]
 ) -> None:
     """Run ``coro`` (which answers ``op`` when it succeeds) on the running
-    loop, its first step now if no task is running (a loop callback, as the
-    handlers are); an Exception it raises is ``op``'s error.
-    While it waits, its Task is in ``tasks`` (cancelled when the server
-    closes)."""
+    loop in a Task of its own, its first step now if no task is running (a
+    loop callback, as the handlers are); an Exception it raises is ``op``'s
+    error. While it waits, its Task is in ``tasks``. (:class:`OpRunner`
+    does the same without a Task per operation that ends at once.)"""
     loop = asyncio.get_running_loop()
     step = _EagerStep(op, coro)
     context = contextvars.copy_context()  # the Task's: the step runs in it
     task = loop.create_task(step, context=context)  # type: ignore[arg-type]
-    eager = _enter_task is not None and _leave_task is not None
-    if eager and asyncio.current_task(loop) is None:  # as from p4p's hand-over
-        _enter_task(loop, task)
+    if _EAGER and asyncio.current_task(loop) is None:  # as from p4p's hand-over
+        _enter_task(loop, task)  # type: ignore[misc]
         try:
             context.run(step.first)
         finally:
-            _leave_task(loop, task)
+            _leave_task(loop, task)  # type: ignore[misc]
     if not step.ended:  # it waits: close() of the server cancels it
         tasks.add(task)
         task.add_done_callback(tasks.discard)
+
+
+_EAGER = _enter_task is not None and _leave_task is not None
+
+
+class OpRunner:
+    """Runs a server's puts and calls on its loop (see the module doc): the
+    first step of each at once, as a step of a standing Task; one that
+    waits goes on in that Task, which is then in ``tasks`` until it ends
+    (``close`` cancels them all)."""
+
+    def __init__(self) -> None:
+        self.tasks: set[asyncio.Task[Any]] = set()
+        self._task: asyncio.Task[Any] | None = None  # the standing Task
+        self._slot: _Slot | None = None
+        self._context: contextvars.Context | None = None
+        self._vars: dict[Any, Any] = {}  # its context's variables when made
+
+    def start(self, op: Any, coro: Coroutine[Any, Any, None]) -> None:
+        """Run ``coro``, which answers ``op`` (an Exception it raises is
+        ``op``'s error), on the running loop; called from a loop callback
+        (as p4p's hand-over calls the handlers) its first step is taken now.
+        """
+        loop = asyncio.get_running_loop()
+        if not _EAGER or asyncio.current_task(loop) is not None:
+            start_op(op, coro, self.tasks)  # in a task: a Task of its own
+            return
+        task = self._task
+        if task is None or task.done() or task.cancelling():
+            task = self._stand(loop)
+        slot, context = self._slot, self._context
+        assert slot is not None and context is not None
+        step = _EagerStep(op, coro)
+        _enter_task(loop, task)  # type: ignore[misc]
+        try:
+            context.run(step.first)
+        finally:
+            _leave_task(loop, task)  # type: ignore[misc]
+        if step.returned:
+            if len(context) != len(self._vars) or (
+                self._vars and any(context[k] is not v for k, v in self._vars.items())
+            ):  # a variable left changed: the next operation gets a new Task
+                self._task = None
+                task.cancel()
+            return
+        # it waits (or raised a BaseException): the standing Task is its own
+        self._task = None
+        slot.take(step)
+        self.tasks.add(task)
+        task.add_done_callback(self.tasks.discard)
+
+    def _stand(self, loop: asyncio.AbstractEventLoop) -> asyncio.Task[Any]:
+        """A new standing Task, waiting for an operation to hand over."""
+        self._slot = slot = _Slot(loop)
+        self._context = context = contextvars.copy_context()
+        self._vars = dict(context)
+        self._task = task = loop.create_task(slot, context=context)  # type: ignore[arg-type]
+        return task
+
+    def close(self) -> None:
+        """Cancel the standing Task and every operation still waiting."""
+        if self._task is not None:
+            self._task.cancel()
+            self._task = None
+        for task in list(self.tasks):
+            task.cancel()
+
+
+class _Slot:
+    """The coroutine of a standing Task: until an operation is handed over
+    it waits on a future of its own; then it is that operation's
+    :class:`_EagerStep` (the Task's next send gives back what the step
+    took in the operation's first step gave). (The coroutine protocol, so
+    that ``asyncio.Task`` takes it.)"""
+
+    __slots__ = ("loop", "step", "idle")
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.loop = loop
+        self.step: _EagerStep | None = None
+        self.idle: asyncio.Future[None] | None = None
+
+    def take(self, step: _EagerStep) -> None:
+        """Hand ``step`` over: the Task goes on with it at its next turn."""
+        self.step = step
+        idle, self.idle = self.idle, None
+        if idle is not None and not idle.done():
+            idle.set_result(None)  # wakes the Task: its send goes to the step
+
+    def send(self, value: Any) -> Any:
+        step = self.step
+        if step is not None:
+            return step.send(value)
+        idle = self.idle
+        if idle is None or idle.done():
+            idle = self.idle = self.loop.create_future()
+        idle._asyncio_future_blocking = True  # what a Future's __await__ yields
+        return idle
+
+    def throw(self, *exc: Any) -> Any:
+        if self.step is not None:
+            return self.step.throw(*exc)
+        self.idle = None
+        if len(exc) == 1:
+            raise exc[0]
+        raise exc[1] if exc[1] is not None else exc[0]()
+
+    def close(self) -> None:
+        if self.step is not None:
+            self.step.close()
+
+    def __next__(self) -> Any:
+        return self.send(None)
+
+    def __iter__(self) -> _Slot:
+        return self
+
+    def __await__(self) -> Generator[Any, None, Any]:
+        return self  # type: ignore[return-value]
 
 
 _UNSTARTED = object()
@@ -117,6 +247,17 @@ class _EagerStep:
     def ended(self) -> bool:
         """Whether the first step (taken) was the coroutine's last."""
         return isinstance(self._first, tuple) and self._first[0] == "raise"
+
+    @property
+    def returned(self) -> bool:
+        """Whether the first step (taken) ended the coroutine as a return
+        does (its error, if any, went to the client)."""
+        first = self._first
+        return (
+            isinstance(first, tuple)
+            and first[0] == "raise"
+            and type(first[1]) is StopIteration
+        )
 
     def first(self) -> None:
         try:

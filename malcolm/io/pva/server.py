@@ -41,7 +41,7 @@ from malcolm.core import (
 
 from .convert import STRUCTURE, assign, fits, spec_at, to_dict, to_value, type_spec
 from .errlog import route_errlog
-from .ops import LoopSharedPV, error_text, start_op
+from .ops import LoopSharedPV, OpRunner, error_text
 from .results import method_args, result_value, version_tag
 from .setters import Setter, compile_setter
 
@@ -315,10 +315,10 @@ class _Channel:
 
     # ---- operations, on the loop (LoopSharedPV hands them there)
     def put(self, pv: SharedPV, op: Any) -> None:
-        start_op(op, self._put(op), self.server._tasks)
+        self.server._ops.start(op, self._put(op))
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
-        start_op(op, self._rpc(op), self.server._tasks)
+        self.server._ops.start(op, self._rpc(op))
 
     async def _put(self, op: Any) -> None:
         value = op.value()
@@ -479,7 +479,9 @@ class PvaServer:
         self._provider: DynamicProvider | None = None
         self._server: Server | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._tasks: set[asyncio.Task[Any]] = set()
+        # puts and calls: run on the loop; those waiting in _tasks
+        self._ops = OpRunner()
+        self._tasks: set[asyncio.Task[Any]] = self._ops.tasks
 
     @property
     def address(self) -> str:
@@ -521,8 +523,7 @@ class PvaServer:
             chan.close()
         for pv in kept:
             pv.close(destroy=True)
-        for task in list(self._tasks):
-            task.cancel()
+        self._ops.close()
 
     # ---- names (any thread)
     def _path_of(self, name: str) -> list[str] | None:
