@@ -17,7 +17,11 @@ of str equal to it): the update carries only what changed (an alarm or a
 timeStamp's seconds mostly stay, only its nanoseconds move), which costs
 less to set, to post and to send. The dict is the channel's, shared by all
 its setters (two setters may set one leaf); whoever sets the channel's
-value another way clears it.
+value another way clears it. A structure of scalar leaves that does not
+change every time (an alarm, a method's arguments; not a timeStamp) is
+recorded there whole too: given one equal to it (its float zeros of the
+same sign), its setter passes over it in one comparison; a setter that
+sets one of its leaves alone drops the record.
 """
 
 from __future__ import annotations
@@ -87,14 +91,17 @@ def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter
     exact = _EXACT.get(spec)
     if exact is not None:
         if last is not None:
+            parent = dotted.rpartition(".")[0]  # its structure's record
 
             def remembered(value: Value, data: Any) -> bool:
                 if type(data) in exact:
                     if _changes(data, last.get(dotted, _MISSING)):
                         value[dotted] = last[dotted] = data
+                        last.pop(parent, None)
                     return True
                 if fits(spec, data):
                     last.pop(dotted, None)
+                    last.pop(parent, None)
                     value[dotted] = _fill(spec, data)
                     return True
                 return False
@@ -116,11 +123,26 @@ def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter
         if fits(spec, data):
             if last is not None:
                 last.pop(dotted, None)
+                last.pop(dotted.rpartition(".")[0], None)
             value[dotted] = _fill(spec, data)
             return True
         return False
 
     return general
+
+
+#: structures whose leaves change every time: no record of them is kept
+_ALWAYS_NEW = frozenset({"time_t"})
+
+
+def _recordable(spec: Spec) -> bool:
+    """Whether a structure's setter keeps a record of the whole structure as
+    last set (with ``last``): only for one of scalar leaves (its float
+    zeros compared by their sign too: ``0.0 == -0.0``) that does not change
+    every time (a timeStamp)."""
+    if spec[1] in _ALWAYS_NEW:
+        return False
+    return all(isinstance(sub, str) and sub in _EXACT for _, sub in spec[2])
 
 
 class _Generator:
@@ -169,11 +191,29 @@ class _Generator:
             lines.append(f"{pad}    if tuple({keys}) != {plain}:\n")
         lines.append(f"{pad}        return False\n")
         prefix = f"{dotted}." if dotted else ""
+        record = self.remember and _recordable(spec)
+        if record:  # the whole structure as last set: equal, nothing to set
+            before = self.var()
+            # a float zero equal to the one recorded may differ in sign
+            zeros = "".join(
+                f" or (not {data}.get({key!r}) and"
+                f" str({data}.get({key!r})) != str({before}.get({key!r})))"
+                for key, sub in spec[2]
+                if sub in ("f", "d")
+            )
+            lines += [
+                f"{pad}{before} = last.get({dotted!r}, MISSING)\n",
+                f"{pad}if {before} is MISSING or {data} != {before}{zeros}:\n",
+            ]
+            depth += 1
+            pad += "    "
         for key, sub in spec[2]:
             var = self.var()
             lines.append(f"{pad}{var} = {data}.get({key!r})\n")
             lines.append(f"{pad}if {var} is not None:\n")
             lines += self.field(sub, prefix + key, log and key == "value", var, depth)
+        if record:
+            lines.append(f"{pad}last[{dotted!r}] = {data}.copy()\n")
         return lines
 
     def field(
