@@ -30,8 +30,17 @@ NTURI = "epics:nt/NTURI:1.0"
 # (id of a returns meta's elements, a result's keys) -> (those elements, the
 # result's spec and Type): a method's result typed by its metas alone has
 # the same type each call (the elements are kept, so their id is not reused)
-_RESULT_TYPES: dict[tuple[int, tuple[str, ...]], tuple[Any, Any, Any]] = {}
+_RESULT_TYPES: dict[tuple[int, tuple[str, ...]], tuple[Any, Any, Any, Any]] = {}
 _RESULT_TYPES_MAX = 256
+
+# a scalar field's code -> the Python types a Value takes for it as they are
+_SCALAR_FITS: dict[str, tuple[type, ...]] = {
+    **{code: (int,) for code in "bBhHiIlL"},
+    "f": (float, int),
+    "d": (float, int),
+    "s": (str,),
+    "?": (bool,),
+}
 
 # where a pvRequest may carry the method's name
 _METHOD_PLACES = ("method", "record._options.method", "field.method")
@@ -120,6 +129,14 @@ def result_value(result: Any, returns: Any) -> Value:
             spec = _freeze(("S", STRUCTURE, fields))
             if len(_RESULT_TYPES) >= _RESULT_TYPES_MAX:
                 _RESULT_TYPES.clear()
-            known = _RESULT_TYPES[key] = (elements, spec, _type(spec))
+            scalars = tuple(_SCALAR_FITS.get(sub) for _, sub in fields)
+            if None in scalars:
+                scalars = None
+            known = _RESULT_TYPES[key] = (elements, spec, _type(spec), scalars)
+        scalars = known[3]
+        if scalars is not None and all(
+            type(v) in fit for v, fit in zip(result.values(), scalars)
+        ):  # every field a scalar of a type it takes as it is
+            return Value(known[2], result)
         return Value(known[2], _fill(known[1], result))
     return map_to_value(result, elements)
