@@ -4,7 +4,8 @@ p4p calls a SharedPV's ``put`` and ``rpc`` handlers in its own thread.
 :class:`LoopSharedPV` hands each to the loop instead, as
 ``p4p.server.asyncio`` does (``SharedPV._exec`` and
 ``loop.call_soon_threadsafe``): one hop, with nothing built in p4p's thread
-but the hand-over, so the handler itself runs on the loop (the rule of
+but the hand-over (not even p4p's own wrapper of the handler), so the
+handler itself runs on the loop (the rule of
 docs/channels.md: block state changes there only).
 
 There, :class:`OpRunner` takes the operation's first step at once, in the
@@ -38,6 +39,7 @@ from collections.abc import Callable, Coroutine, Generator
 from typing import Any
 
 from p4p.server.raw import SharedPV
+from p4p.server.raw import _SharedPV as _RawSharedPV
 
 __all__ = ["LoopSharedPV", "OpRunner", "error_text", "start_op"]
 
@@ -57,20 +59,60 @@ def error_text(e: BaseException) -> str:
 class LoopSharedPV(SharedPV):
     """A p4p SharedPV whose put and rpc handlers run on ``loop``.
 
-    Connection callbacks (``onFirstConnect``, ``onLastDisconnect``) stay in
-    p4p's thread: the handler's own (cheap, thread-safe) bookkeeping."""
+    p4p's thread hands a put or call over in one step, with nothing built
+    there but the hand-over: the PV's C++ side calls :class:`_LoopHandler`,
+    in place of p4p's own wrapper (which logged each operation at debug
+    level, wrapped a put's operation for a ``nt`` this server has not, and
+    went through ``_exec``). Connection callbacks (``onFirstConnect``,
+    ``onLastDisconnect``) stay in p4p's thread: the handler's own (cheap,
+    thread-safe) bookkeeping."""
 
     def __init__(self, loop: asyncio.AbstractEventLoop, handler: Any) -> None:
         self._loop = loop
-        super().__init__(handler=handler)
+        # what p4p's SharedPV.__init__ sets, with this module's hand-over
+        self.nt = None
+        self._handler = handler
+        self._wrap = self._unwrap = _same
+        self._whandler = _LoopHandler(self, loop, handler)
+        _RawSharedPV.__init__(self, self._whandler, None)
 
-    def _exec(self, op: Any, method: Any, *args: Any) -> None:  # p4p's hook
-        if op is None:
-            super()._exec(op, method, *args)
-            return
+
+def _same(value: Any) -> Any:
+    return value
+
+
+class _LoopHandler:
+    """What a :class:`LoopSharedPV`'s C++ side calls (in p4p's threads)."""
+
+    __slots__ = ("pv", "real", "call")
+
+    def __init__(self, pv: SharedPV, loop: asyncio.AbstractEventLoop, real: Any):
+        self.pv = pv
+        self.real = real
+        self.call = loop.call_soon_threadsafe
+
+    def onFirstConnect(self) -> None:  # noqa: N802 (p4p's name)
         try:
-            self._loop.call_soon_threadsafe(_run_handler, op, method, args)
+            self.real.onFirstConnect(self.pv)
+        except Exception:
+            log.exception("pva onFirstConnect %r", self.pv)
+
+    def onLastDisconnect(self) -> None:  # noqa: N802
+        try:
+            self.real.onLastDisconnect(self.pv)
+        except Exception:
+            log.exception("pva onLastDisconnect %r", self.pv)
+
+    def put(self, op: Any) -> None:
+        try:
+            self.call(_run_handler, op, self.real.put, (self.pv, op))
         except RuntimeError as e:  # the loop is closed: the server is stopping
+            op.done(error=error_text(e))
+
+    def rpc(self, op: Any) -> None:
+        try:
+            self.call(_run_handler, op, self.real.rpc, (self.pv, op))
+        except RuntimeError as e:
             op.done(error=error_text(e))
 
 
