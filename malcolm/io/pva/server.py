@@ -77,8 +77,9 @@ class _Channel:
         self._update: Value | None = None
         self.sub: Any = None
         self.closed = False
-        # change path -> its compiled setter, for self.spec (reset with it)
-        self._setters: dict[tuple[str, ...], Setter] = {}
+        # change path (relative to the block) -> its compiled setter and the
+        # path relative to the channel, for self.spec (reset with it)
+        self._setters: dict[tuple[str, ...], tuple[Setter, tuple[str, ...]]] = {}
         # leaf -> what the setters last set it to, to leave it unmarked when
         # it is set to that again (malcolm.io.pva.setters); cleared whenever
         # the PV's value is set another way
@@ -86,6 +87,7 @@ class _Channel:
         # the block meta and a meta channel go whole: never the fast path
         self._fast_ok = self.path[1:] != ["meta"]
         self._block = len(self.path) == 1  # the whole block's channel
+        self._skip = len(self.path) - 1  # what begins a block's path of it
 
     @property
     def data(self) -> Any:
@@ -140,7 +142,9 @@ class _Channel:
         if self.closed:
             return
         try:
-            self.sub = self.server.process.subscribe(self.path, self._on_changes)
+            self.sub = self.server.process.subscribe(
+                self.path, self._on_changes, below=self._on_below
+            )
         except NotFoundError:  # gone between the look-up and now
             self.server._forget(self)
 
@@ -165,12 +169,26 @@ class _Channel:
         return len(self.path) == 1 and any(c[0][:1] == ["meta"] for c in changes)
 
     def _on_changes(self, changes: list[list[Any]]) -> None:
+        """Changes relative to the channel's path (the first, the whole of
+        it; then what :meth:`_on_below` does not get)."""
+        try:
+            if self.closed:
+                return
+            self._apply(changes)
+        except Exception as e:  # a monitor must never stop the process
+            log.exception("pva %s: %s", self.name, error_text(e))
+
+    def _on_below(self, changes: list[list[Any]]) -> None:
+        """Changes lying below the channel's path, as the block gave them
+        (paths relative to the block: a field channel's begin with its
+        field; shared with other subscribers, so never changed here)."""
         try:
             if self.closed:
                 return
             if self._fast_ok and self._data is not None and self._apply_fast(changes):
                 return
-            self._apply(changes)
+            skip = self._skip
+            self._apply([[list(c[0][skip:]), *c[1:]] for c in changes])
         except Exception as e:  # a monitor must never stop the process
             log.exception("pva %s: %s", self.name, error_text(e))
 
@@ -236,16 +254,16 @@ class _Channel:
         self.pv.post(value)
 
     def _apply_fast(self, changes: list[list[Any]]) -> bool:
-        """Post ``changes`` if each sets a field whose type it still fits
-        (the common case: a value, its alarm and timeStamp); False, with
-        nothing posted, for anything else (deletions, the whole channel, the
-        block's meta, a new shape), which :meth:`_apply` does in full."""
+        """Post ``changes`` (paths relative to the block, see
+        :meth:`_on_below`) if each sets a field whose type it still fits (the
+        common case: a value, its alarm and timeStamp); False, with nothing
+        posted, for anything else (the block's meta, a new shape), which
+        :meth:`_apply` does in full."""
         value = self._update  # self._next_update(), in line
         if value is None:
             value = self._update = Value(self.type)
         else:
             value.unmark()
-        block = self._block
         setters = self._setters
         # each change's data is recorded, applied to data when it is next
         # read: a path's latest change moved last, so applying them in order
@@ -257,24 +275,34 @@ class _Channel:
             if len(change) != 2:
                 return False
             path = change[0]
-            if not path or (block and path[0] == "meta"):
-                return False
             key = tuple(path)
-            setter = setters.get(key)
-            if setter is None:
-                sub_spec = spec_at(self.spec, path)
-                if sub_spec is None:
+            known = setters.get(key)
+            if known is None:
+                known = self._setter(path)
+                if known is None:
                     return False
-                setter = setters[key] = compile_setter(
-                    sub_spec, ".".join(path), last=self._last
-                )
+            setter, where = known
             data = change[1]
             if not setter(value, data):
                 return False
-            pending.pop(key, None)
-            pending[key] = data
+            pending.pop(where, None)
+            pending[where] = data
         _post(self.pv, value)
         return True
+
+    def _setter(self, path: list[str]) -> tuple[Setter, tuple[str, ...]] | None:
+        """The compiled setter of a change at ``path`` (relative to the
+        block) and the path it sets relative to the channel; None if that is
+        not a field of the channel's type (or the block's meta)."""
+        where = tuple(path[self._skip :])
+        if self._block and where[:1] == ("meta",):
+            return None  # the block meta (and its version tag) goes whole
+        sub_spec = spec_at(self.spec, where)
+        if sub_spec is None:
+            return None
+        setter = compile_setter(sub_spec, ".".join(where), last=self._last)
+        known = self._setters[tuple(path)] = (setter, where)
+        return known
 
     def _reopen(self, spec: Any = None) -> None:
         self._setters.clear()
