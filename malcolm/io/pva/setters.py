@@ -226,9 +226,11 @@ class _Generator:
         exact = _EXACT.get(spec)
         lines = []
         if spec == "as":  # a list of str as it is (a MethodLog's present)
+            # equal to what it holds (a list of str): no look at each item
+            same = f"{data} == last.get({where}) or " if self.remember else ""
             lines += [
-                f"{pad}if type({data}) is list and all(\n",
-                f"{pad}    type(x) is str for x in {data}\n",
+                f"{pad}if type({data}) is list and (\n",
+                f"{pad}    {same}all(type(x) is str for x in {data})\n",
                 f"{pad}):\n",
                 *self.store(pad + "    ", where, data, f"list({data})"),
                 f"{pad}elif fits({sub}, {data}):\n",
