@@ -75,18 +75,6 @@ def compile_setter(
 _MISSING = object()
 
 
-def _changes(data: Any, before: Any) -> bool:
-    """Whether a leaf that holds ``before`` (``MISSING``: not known) gets
-    something new from ``data`` (of a type that fits it as it is): not
-    equal, or a zero that may be a float's (0.0 and -0.0 are equal, not the
-    same). The generated setters have this in line."""
-    return (
-        before is _MISSING
-        or data != before
-        or (not data and (type(data) is float or type(before) is float))
-    )
-
-
 def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter:
     exact = _EXACT.get(spec)
     if exact is not None:
@@ -95,7 +83,13 @@ def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter
 
             def remembered(value: Value, data: Any) -> bool:
                 if type(data) in exact:
-                    if _changes(data, last.get(dotted, _MISSING)):
+                    # new: not equal, or a zero that may be a float's (0.0 == -0.0)
+                    before = last.get(dotted, _MISSING)
+                    if (
+                        before is _MISSING
+                        or data != before
+                        or (not data and (type(data) is float or type(before) is float))
+                    ):
                         value[dotted] = last[dotted] = data
                         last.pop(parent, None)
                     return True
