@@ -83,12 +83,11 @@ def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter
 
             def remembered(value: Value, data: Any) -> bool:
                 if type(data) in exact:
-                    # new: not equal, or a zero that may be a float's (0.0 == -0.0)
+                    # new: not equal (_MISSING is unequal to anything), or a
+                    # zero that may be a float's (0.0 == -0.0)
                     before = last.get(dotted, _MISSING)
-                    if (
-                        before is _MISSING
-                        or data != before
-                        or (not data and (type(data) is float or type(before) is float))
+                    if data != before or (
+                        not data and (type(data) is float or type(before) is float)
                     ):
                         value[dotted] = last[dotted] = data
                         last.pop(parent, None)
@@ -233,7 +232,7 @@ class _Generator:
             types = self.const(exact)
             lines += [
                 f"{pad}if type({data}) in {types}:\n",
-                *self.store(pad + "    ", where, data, data),
+                *self.store(pad + "    ", where, data, data, spec in ("f", "d")),
                 f"{pad}elif fits({sub}, {data}):\n",
             ]
         else:
@@ -246,18 +245,28 @@ class _Generator:
             f"{pad}    return False\n",
         ]
 
-    def store(self, pad: str, where: str, data: str, kept: str) -> list[str]:
+    def store(
+        self, pad: str, where: str, data: str, kept: str, floats: bool = False
+    ) -> list[str]:
         """Lines that set leaf ``where`` to ``data`` (with ``last``: unless it
-        holds that already; ``kept`` is what ``last`` keeps of it)."""
+        holds that already; ``kept`` is what ``last`` keeps of it; ``floats``:
+        it may be a float, whose zero is always set). ``MISSING`` is unequal
+        to anything ``data`` may be (an int, str, bool, float or list)."""
         if not self.remember:
             return [f"{pad}value[{where}] = {data}\n"]
         before = self.var()
+        if floats:
+            changed = [
+                f"{pad}if {data} != {before} or (\n",
+                f"{pad}    not {data}\n",
+                f"{pad}    and (type({data}) is float or type({before}) is float)\n",
+                f"{pad}):\n",
+            ]
+        else:
+            changed = [f"{pad}if {data} != {before}:\n"]
         return [
             f"{pad}{before} = last.get({where}, MISSING)\n",
-            f"{pad}if {before} is MISSING or {data} != {before} or (\n",
-            f"{pad}    not {data}\n",
-            f"{pad}    and (type({data}) is float or type({before}) is float)\n",
-            f"{pad}):\n",
+            *changed,
             f"{pad}    value[{where}] = {data}\n",
             f"{pad}    last[{where}] = {kept}\n",
         ]
