@@ -166,9 +166,28 @@ class _Generator:
         pad = "    " * depth
         names = tuple(k for k, _ in spec[2])
         log = spec[1] == _METHOD_LOG
+        lines: list[str] = []
+        record = self.remember and _recordable(spec)
+        if record:
+            # the whole structure as last set (its shape checked then): equal,
+            # nothing to check or set; a float zero equal to the one recorded
+            # may differ in sign
+            before = self.var()
+            zeros = "".join(
+                f" or (not {data}.get({key!r}) and"
+                f" str({data}.get({key!r})) != str({before}.get({key!r})))"
+                for key, sub in spec[2]
+                if sub in ("f", "d")
+            )
+            lines += [
+                f"{pad}{before} = last.get({dotted!r}, MISSING)\n",
+                f"{pad}if {before} is MISSING or {data} != {before}{zeros}:\n",
+            ]
+            depth += 1
+            pad += "    "
         keys = self.var()
         typed, plain = self.const(("typeid", *names)), self.const(names)
-        lines = [
+        lines += [
             f"{pad}if not isinstance({data}, dict):\n",
             f"{pad}    return False\n",
             f"{pad}if {data}.get('typeid', {STRUCTURE!r}) != {spec[1]!r}:\n",
@@ -184,22 +203,6 @@ class _Generator:
             lines.append(f"{pad}    if tuple({keys}) != {plain}:\n")
         lines.append(f"{pad}        return False\n")
         prefix = f"{dotted}." if dotted else ""
-        record = self.remember and _recordable(spec)
-        if record:  # the whole structure as last set: equal, nothing to set
-            before = self.var()
-            # a float zero equal to the one recorded may differ in sign
-            zeros = "".join(
-                f" or (not {data}.get({key!r}) and"
-                f" str({data}.get({key!r})) != str({before}.get({key!r})))"
-                for key, sub in spec[2]
-                if sub in ("f", "d")
-            )
-            lines += [
-                f"{pad}{before} = last.get({dotted!r}, MISSING)\n",
-                f"{pad}if {before} is MISSING or {data} != {before}{zeros}:\n",
-            ]
-            depth += 1
-            pad += "    "
         for key, sub in spec[2]:
             var = self.var()
             lines.append(f"{pad}{var} = {data}.get({key!r})\n")
