@@ -184,7 +184,12 @@ class OpRunner:
             context.run(step.first)
         finally:
             _leave_task(loop, task)  # type: ignore[misc]
-        if step.returned:
+        first = step._first  # it returned (its error, if any, went to op)
+        if (
+            type(first) is tuple
+            and first[0] == "raise"
+            and type(first[1]) is StopIteration
+        ):
             if len(context) != len(self._vars) or (
                 self._vars and any(context[k] is not v for k, v in self._vars.items())
             ):  # a variable left changed: the next operation gets a new Task
@@ -289,17 +294,6 @@ class _EagerStep:
     def ended(self) -> bool:
         """Whether the first step (taken) was the coroutine's last."""
         return isinstance(self._first, tuple) and self._first[0] == "raise"
-
-    @property
-    def returned(self) -> bool:
-        """Whether the first step (taken) ended the coroutine as a return
-        does (its error, if any, went to the client)."""
-        first = self._first
-        return (
-            isinstance(first, tuple)
-            and first[0] == "raise"
-            and type(first[1]) is StopIteration
-        )
 
     def first(self) -> None:
         try:

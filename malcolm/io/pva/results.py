@@ -83,7 +83,9 @@ def _args(value: Any, where: str) -> dict[str, Any]:
 def method_args(
     path: list[str], value: Any, request: Any
 ) -> tuple[str, str, dict[str, Any]]:
-    """``(mri, method, arguments)`` of a call on the channel of ``path``."""
+    """``(mri, method, arguments)`` of a call on the channel of ``path``;
+    ``request`` is the pvRequest, or a function giving it (called only for
+    a call on a block's channel, the one form that reads it)."""
     channel = ".".join(path)
     if isinstance(value, Value) and value.getID() == NTURI:
         try:
@@ -102,7 +104,7 @@ def method_args(
         return mri, method, _args(query, f"{target}: query")
     if len(path) == 2:
         return path[0], path[1], _args(value, channel)
-    method = _request_method(request)
+    method = _request_method(request() if callable(request) else request)
     if method is None:
         raise BadValueError(
             f"{channel}: a call on a block's channel needs the method's name in "

@@ -371,7 +371,7 @@ class _Channel:
         op.done()
 
     async def _rpc(self, op: Any) -> None:
-        mri, method, args = method_args(self.path, op.value(), op.pvRequest())
+        mri, method, args = method_args(self.path, op.value(), op.pvRequest)
         process = self.server.process
         result = await process.post([mri, method], args)
         op.done(result_value(result, self._returns(mri, method)))
@@ -381,10 +381,12 @@ class _Channel:
         recorded are applied first only if one of them is at, above or below
         ``path`` (a call's took and returned leave its returns as they are,
         and are not applied for every call)."""
+        first = path[0]
         for key in self._pending:
-            n = min(len(key), len(path))
-            if key[:n] == path[:n]:
-                return self.data
+            if key[0] == first:  # (most differ there: a call's took, returned)
+                n = min(len(key), len(path))
+                if key[:n] == path[:n]:
+                    return self.data
         return self._data
 
     def _returns(self, mri: str, method: str) -> Any:
