@@ -430,3 +430,44 @@ def test_a_call_reads_returns_applying_recorded_changes_only_there(served):  # n
         assert not chan._pending  # applied for that
 
     process.call_threadsafe(check).result(5)
+
+
+def test_a_client_that_has_its_answer_gets_the_new_took_and_returned(served):  # noqa: F811
+    """A call is answered after its took and returned were posted: a get
+    (answered by pvxs from its cache, in its own thread) of the method's or
+    the block's channel right after the answer has this call's, every time;
+    so does a new monitor's first update."""
+    from p4p import Type, Value
+
+    tp, process, server, ctx = served
+    ctx.get("FIRST.zero", timeout=5)  # both channels open, answered from cache
+    ctx.get("FIRST", timeout=5)
+    empty = Value(Type([]), {})
+    for _ in range(20):
+        ctx.rpc("FIRST.zero", empty, timeout=5)
+        took, returned = process.call_threadsafe(
+            lambda: (
+                process.get(["FIRST", "zero", "took", "timeStamp"]),
+                process.get(["FIRST", "zero", "returned", "timeStamp"]),
+            )
+        ).result(5)
+        field = ctx.get("FIRST.zero", timeout=5)
+        block = ctx.get("FIRST", timeout=5)
+        for got, prefix in ((field, ""), (block, "zero.")):
+            for which, stamp in (("took", took), ("returned", returned)):
+                where = f"{prefix}{which}.timeStamp"
+                assert got[f"{where}.nanoseconds"] == stamp["nanoseconds"], where
+                assert got[f"{where}.secondsPastEpoch"] == stamp["secondsPastEpoch"]
+    import queue
+
+    ctx.rpc("FIRST.zero", empty, timeout=5)
+    stamp = process.call_threadsafe(
+        process.get, ["FIRST", "zero", "returned", "timeStamp"]
+    ).result(5)
+    first: queue.Queue[Any] = queue.Queue()
+    sub = ctx.monitor("FIRST.zero", first.put)  # opened after the answer
+    try:
+        got = first.get(timeout=5)
+        assert got["returned.timeStamp.nanoseconds"] == stamp["nanoseconds"]
+    finally:
+        sub.close()
