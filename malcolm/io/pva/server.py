@@ -271,22 +271,20 @@ class _Channel:
         # a change that does not fit is harmless: _apply then applies the
         # recorded ones and every change again, which gives the same data
         pending = self._pending
-        for change in changes:
-            if len(change) != 2:
-                return False
-            path = change[0]
-            key = tuple(path)
-            known = setters.get(key)
-            if known is None:
-                known = self._setter(path)
+        try:
+            for path, data in changes:  # a deletion ([path]) does not unpack
+                known = setters.get(tuple(path))
                 if known is None:
+                    known = self._setter(path)
+                    if known is None:
+                        return False
+                setter, where = known
+                if not setter(value, data):
                     return False
-            setter, where = known
-            data = change[1]
-            if not setter(value, data):
-                return False
-            pending.pop(where, None)
-            pending[where] = data
+                pending.pop(where, None)
+                pending[where] = data
+        except ValueError:  # (or a setter's: _apply then does it in full)
+            return False
         _post(self.pv, value)
         return True
 
