@@ -52,6 +52,11 @@ log = logging.getLogger(__name__)
 # SharedPV.post without p4p's wrap step (the identity here: no nt)
 _post = _RawSharedPV.post
 
+# a put's changed set that is a field's value alone; what to_dict and
+# _plain_put give back as it is
+_VALUE = {"value"}
+_SCALARS = frozenset({float, int, str, bool})
+
 #: seconds a channel nobody is connected to is kept (a client reconnecting)
 RELEASE_DELAY = 2.0
 
@@ -349,8 +354,16 @@ class _Channel:
     async def _put(self, op: Any) -> None:
         value = op.value()
         mri = self.path[0]
+        changed = value.changedSet()
+        if changed == _VALUE and len(self.path) == 2:  # a field's value: most
+            new = value["value"]
+            if type(new) not in _SCALARS:
+                new = _plain_put(to_dict(new))
+            await self.server.process.put(self.path, new)
+            op.done()
+            return
         puts: dict[str, Any] = {}  # field -> new value, in the order given
-        for dotted in sorted(value.changedSet()):
+        for dotted in sorted(changed):
             parts = dotted.split(".")
             if len(self.path) == 2:
                 field, rest, prefix = self.path[1], parts, ""
