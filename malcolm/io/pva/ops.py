@@ -178,18 +178,12 @@ class OpRunner:
             task = self._stand(loop)
         slot, context = self._slot, self._context
         assert slot is not None and context is not None
-        step = _EagerStep(op, coro)
         _enter_task(loop, task)  # type: ignore[misc]
         try:
-            context.run(step.first)
+            first = context.run(_first_step, op, coro)
         finally:
             _leave_task(loop, task)  # type: ignore[misc]
-        first = step._first  # it returned (its error, if any, went to op)
-        if (
-            type(first) is tuple
-            and first[0] == "raise"
-            and type(first[1]) is StopIteration
-        ):
+        if first is _ENDED:  # it returned (its error, if any, went to op)
             if len(context) != len(self._vars) or (
                 self._vars and any(context[k] is not v for k, v in self._vars.items())
             ):  # a variable left changed: the next operation gets a new Task
@@ -198,6 +192,8 @@ class OpRunner:
             return
         # it waits (or raised a BaseException): the standing Task is its own
         self._task = None
+        step = _EagerStep(op, coro)
+        step._first = first
         slot.take(step)
         self.tasks.add(task)
         task.add_done_callback(self.tasks.discard)
@@ -217,6 +213,24 @@ class OpRunner:
             self._task = None
         for task in list(self.tasks):
             task.cancel()
+
+
+_ENDED = object()
+
+
+def _first_step(op: Any, coro: Coroutine[Any, Any, None]) -> Any:
+    """The first step of ``coro``: ``_ENDED`` if it returned or raised an
+    Exception (``op``'s error), else what :class:`_EagerStep` keeps of it
+    (the future it waits on, or a BaseException it raised)."""
+    try:
+        return ("yield", coro.send(None))
+    except StopIteration:
+        return _ENDED
+    except Exception as e:  # the client's error; the operation ends
+        op.done(error=error_text(e))
+        return _ENDED
+    except BaseException as e:
+        return ("raise", e)
 
 
 class _Slot:
