@@ -1,11 +1,10 @@
 """Puts and method calls of the pvAccess server, run on the process's loop.
 
 p4p calls a SharedPV's ``put`` and ``rpc`` handlers in its own thread.
-:class:`LoopSharedPV` hands each to the loop instead, as
-``p4p.server.asyncio`` does (``SharedPV._exec`` and
-``loop.call_soon_threadsafe``): one hop, with nothing built in p4p's thread
-but the hand-over (not even p4p's own wrapper of the handler), so the
-handler itself runs on the loop (the rule of
+:class:`LoopSharedPV` hands each to the loop instead, with
+``loop.call_soon_threadsafe`` as ``p4p.server.asyncio`` does: one hop, with
+nothing built in p4p's thread but the hand-over (not even p4p's own wrapper
+of the handler), so the handler itself runs on the loop (the rule of
 docs/channels.md: block state changes there only).
 
 There, :class:`OpRunner` takes the operation's first step at once, in the
