@@ -206,6 +206,10 @@ class _Generator:
         for key, sub in spec[2]:
             var = self.var()
             lines.append(f"{pad}{var} = {data}.get({key!r})\n")
+            if not isinstance(sub, tuple) and _EXACT.get(sub) is not None:
+                # a scalar leaf: its type tested first (None is not of it)
+                lines += self.scalar(sub, prefix + key, var, pad)
+                continue
             lines.append(f"{pad}if {var} is not None:\n")
             lines += self.field(sub, prefix + key, log and key == "value", var, depth)
         if record:
@@ -246,6 +250,31 @@ class _Generator:
             f"{pad}    value[{where}] = _fill({sub}, {data})\n",
             f"{pad}else:\n",
             f"{pad}    return False\n",
+        ]
+
+    def scalar(self, spec: str, dotted: str, data: str, pad: str) -> list[str]:
+        """Lines that set a scalar leaf from ``data`` (maybe None: left as it
+        is), or return False if it does not fit."""
+        sub, where = self.const(spec), repr(dotted)
+        types = self.const(_EXACT[spec])
+        if self.remember and spec not in ("f", "d"):
+            stored = [
+                f"{pad}    if {data} != last.get({where}, MISSING):\n",
+                f"{pad}        value[{where}] = {data}\n",
+                f"{pad}        last[{where}] = {data}\n",
+            ]
+        else:
+            stored = self.store(pad + "    ", where, data, data, spec in ("f", "d"))
+        forget = [f"{pad}        last.pop({where}, None)\n"] if self.remember else []
+        return [
+            f"{pad}if type({data}) in {types}:\n",
+            *stored,
+            f"{pad}elif {data} is not None:\n",
+            f"{pad}    if fits({sub}, {data}):\n",
+            *forget,
+            f"{pad}        value[{where}] = _fill({sub}, {data})\n",
+            f"{pad}    else:\n",
+            f"{pad}        return False\n",
         ]
 
     def store(
