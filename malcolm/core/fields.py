@@ -18,6 +18,9 @@ Change = list  # [path: list[str], value] or [path] for a delete
 
 TABLE_TYPEID = "malcolm:core/Table:1.0"
 
+#: what plain() gives back as it is
+_PLAIN = frozenset({float, int, str, bool, type(None)})
+
 
 class Field:
     """Something with a name that lives in a block and reports its changes."""
@@ -191,9 +194,14 @@ class MethodLog:
     typeid = "malcolm:core/MethodLog:1.0"
 
     def to_dict(self) -> dict[str, Any]:
+        value = self.value
+        if type(value) is dict and _PLAIN.issuperset(map(type, value.values())):
+            value = dict(value)  # plain() of scalars (most arguments), in C
+        else:
+            value = plain(value)
         return {
             "typeid": self.typeid,
-            "value": plain(self.value),
+            "value": value,
             "present": list(self.present),
             "alarm": self.alarm.to_dict(),
             "timeStamp": self.timeStamp.to_dict(),
@@ -231,17 +239,27 @@ class Method(Field):
         self.returned = MethodLog()
 
     def set_took(self, args: Mapping[str, Any]) -> None:
-        if self._off_loop(self.set_took, args):
-            return
-        self.took = MethodLog(dict(args), list(args), Alarm.ok, TimeStamp.now())
-        self._notify([[[self.name, "took"], self.took.to_dict()]])
+        # on the loop (the common case) checked in line, as set_value does:
+        # once per call of every method
+        block = self.block
+        owner = block.owner if block is not None else None
+        if owner is not None and not owner.here():
+            if self._off_loop(self.set_took, args):
+                return
+        self.took = log = MethodLog(dict(args), list(args), Alarm.ok, TimeStamp.now())
+        if block is not None:
+            block.notify([[[self.name, "took"], log.to_dict()]])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
-        if self._off_loop(self.set_returned, value, alarm):
-            return
+        block = self.block
+        owner = block.owner if block is not None else None
+        if owner is not None and not owner.here():
+            if self._off_loop(self.set_returned, value, alarm):
+                return
         value = dict(value or {})
-        self.returned = MethodLog(value, list(value), alarm, TimeStamp.now())
-        self._notify([[[self.name, "returned"], self.returned.to_dict()]])
+        self.returned = log = MethodLog(value, list(value), alarm, TimeStamp.now())
+        if block is not None:
+            block.notify([[[self.name, "returned"], log.to_dict()]])
 
     def set_writeable(self, writeable: bool) -> None:
         if self._off_loop(self.set_writeable, writeable):

@@ -25,16 +25,58 @@ Callback = Callable[[Any], None]
 class Subscription:
     """A subscriber's path and callback; ``delta`` selects deltas or whole values."""
 
-    def __init__(self, path: Sequence[str], callback: Callback, delta: bool) -> None:
+    def __init__(
+        self,
+        path: Sequence[str],
+        callback: Callback,
+        delta: bool,
+        below: Callback | None = None,
+    ) -> None:
         self.path = list(path)
         #: the path below the mri, which the changes of a block are relative to
         self.rest = self.path[1:]
         self.callback = callback
         self.delta = delta
+        #: gets the block's own changes lying below the path (see subscribe)
+        self.below = below
         self.active = True
 
     def __repr__(self) -> str:
         return f"<Subscription {'.'.join(self.path)} delta={self.delta}>"
+
+
+def _below(rest: list[str], changes: list[Change]) -> list[Change] | None:
+    """The changes lying strictly below ``rest`` (a path in a block), as they
+    are; None if one of them is at ``rest`` or above it (see subscribe's
+    ``below``)."""
+    if not rest:  # the whole block: every change, unless one replaces it
+        for change in changes:
+            if not change[0]:
+                return None
+        return changes
+    n = len(rest)
+    if n == 1:  # a field (the common case)
+        name = rest[0]
+        touching = []
+        for change in changes:
+            path = change[0]
+            if not path:
+                return None
+            if path[0] == name:
+                if len(path) == 1:
+                    return None
+                touching.append(change)
+        return touching
+    touching = []
+    for change in changes:
+        path = list(change[0])
+        if path[:n] == rest:
+            if len(path) == n:
+                return None
+            touching.append(change)
+        elif rest[: len(path)] == path:
+            return None  # a parent replaced or deleted
+    return touching
 
 
 def _index(data: Any, path: Sequence[str], where: str) -> Any:
@@ -78,7 +120,8 @@ class Process:
         self._subs: dict[str, list[Subscription]] = {}
         # deliveries wait here while a callback runs, so that every
         # subscriber sees changes in the order they were made
-        self._queue: deque[tuple[Subscription, Any]] = deque()
+        # (subscription, payload, the callback of it that gets the payload)
+        self._queue: deque[tuple[Subscription, Any, Callback]] = deque()
         self._delivering = False
         self._hosting_watchers: list[Callable[[], None]] = []
         self.loop: asyncio.AbstractEventLoop | None = None
@@ -118,7 +161,7 @@ class Process:
         controller.block.set_listener(None)
         for sub in self._subs.pop(mri, []):
             # nothing is queued for it after this: it is off the list
-            self._queue.append((sub, [[[]]] if sub.delta else None))
+            self._queue.append((sub, [[[]]] if sub.delta else None, sub.callback))
         self._flush()
         self._hosting_changed()
         return controller
@@ -235,24 +278,39 @@ class Process:
 
     # ---- subscriptions
     def subscribe(
-        self, path: Sequence[str], callback: Callback, delta: bool = True
+        self,
+        path: Sequence[str],
+        callback: Callback,
+        delta: bool = True,
+        below: Callback | None = None,
     ) -> Subscription:
         """Subscribe; the callback gets the current value at once, then changes.
 
         With ``delta=True`` the first call is ``[[[], value]]`` and later ones
         lists of changes relative to ``path``; with ``delta=False`` each call
         gets the whole value at ``path`` (None once it has been deleted).
+
+        ``below`` (with ``delta``), if given, gets instead each batch whose
+        changes that touch ``path`` all lie strictly below it, as the block
+        gave them: paths relative to the block (``path`` without its mri
+        begins each), neither copied nor filtered for a block's path (they
+        are shared: read them, never change them). Any other batch (``path``
+        itself or a parent replaced or deleted) goes to ``callback`` as
+        without ``below``. (For a subscriber that follows every change of a
+        field, such as a pvAccess channel: no copy of every change's path.)
         """
         if isinstance(path, str) or not path:
             raise NotFoundError(f"subscribe needs a path [mri, ...], got {path!r}")
         owner = self.owner
         if owner is not None and not owner.here():
             what = f"the subscriptions of {'.'.join(map(str, path))}"
-            done, sub = owner.elsewhere(what, self.subscribe, path, callback, delta)
+            done, sub = owner.elsewhere(
+                what, self.subscribe, path, callback, delta, below
+            )
             if done:
                 return sub
         value = self.get(path)
-        sub = Subscription(path, callback, delta)
+        sub = Subscription(path, callback, delta, below if delta else None)
         self._subs.setdefault(sub.path[0], []).append(sub)
         self._deliver(sub, [[[], value]] if delta else value)
         return sub
@@ -314,10 +372,16 @@ class Process:
             return  # nothing queued: an outer _flush (if any) has the rest
         queue = self._queue
         for sub in list(subs):
+            if sub.below is not None:
+                touching = _below(sub.rest, changes)
+                if touching is not None:
+                    if touching:
+                        queue.append((sub, touching, sub.below))
+                    continue
             relative = self._relative(sub, changes)
             if relative:
                 payload = relative if sub.delta else self._get_or_none(sub.path)[1]
-                queue.append((sub, payload))
+                queue.append((sub, payload, sub.callback))
         self._flush()
 
     def _flush(self) -> None:
@@ -327,10 +391,10 @@ class Process:
         queue = self._queue
         try:
             while queue:
-                sub, payload = queue.popleft()
+                sub, payload, callback = queue.popleft()
                 if sub.active:
                     try:  # _deliver, in line: once per subscriber per change
-                        sub.callback(payload)
+                        callback(payload)
                     except Exception:
                         log.exception("subscriber %r raised", sub)
         finally:

@@ -1,6 +1,7 @@
 """Puts and calls of the pvAccess server run on the loop, their first step
-at once (malcolm.io.pva.ops): the operation's Task is current, its context
-is the Task's, and one that waits goes on without holding up the loop."""
+at once (malcolm.io.pva.ops): a Task is current (the runner's standing
+Task, which an operation that waits keeps as its own), its context is the
+Task's, and one that waits goes on without holding up the loop."""
 
 from __future__ import annotations
 
@@ -10,7 +11,9 @@ import threading
 import time
 from typing import Any
 
-from malcolm.io.pva.ops import start_op
+import pytest
+
+from malcolm.io.pva.ops import OpRunner, start_op
 
 from .test_pva_runtime import served  # noqa: F401 (a fixture)
 
@@ -27,7 +30,7 @@ def from_callback(func: Any, *args: Any) -> Any:
 
 
 class Op:
-    """What start_op needs of p4p's ServerOperation: done(value, error)."""
+    """What the runner needs of p4p's ServerOperation: done(value, error)."""
 
     def __init__(self) -> None:
         self.answers: list[tuple[Any, Any]] = []
@@ -36,31 +39,84 @@ class Op:
         self.answers.append((value, error))
 
 
-def test_an_operation_that_never_waits_is_answered_before_start_op_returns():
-    seen: dict[str, Any] = {}
+class Runner:
+    """The two ways to run an operation: OpRunner (the server's), and
+    start_op (a Task per operation), with the same outcomes."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.runner = OpRunner()
+        self.tasks = self.runner.tasks
+
+    def start(self, op: Op, coro: Any) -> None:
+        if self.kind == "runner":
+            self.runner.start(op, coro)
+        else:
+            start_op(op, coro, self.tasks)
+
+
+@pytest.fixture(params=["runner", "start_op"])
+def kind(request: Any) -> str:
+    return request.param
+
+
+def test_an_operation_that_never_waits_is_answered_before_start_returns(kind):
+    seen: list[Any] = []
 
     async def put(op: Op) -> None:
-        seen["task"] = asyncio.current_task()
+        seen.append(asyncio.current_task())
         op.done("ok")
 
     async def main() -> None:
-        op, tasks = Op(), set()
+        run = Runner(kind)
+        op = Op()
 
         def handler() -> list[Any]:
-            start_op(op, put(op), tasks)
+            run.start(op, put(op))
             return list(op.answers)
 
         # answered with no turn of the loop
         assert await from_callback(handler) == [("ok", None)]
-        assert not tasks
-        assert isinstance(seen["task"], asyncio.Task)
+        assert not run.tasks
+        assert isinstance(seen[0], asyncio.Task)
         await asyncio.sleep(0)
-        assert seen["task"].done() and seen["task"].exception() is None
+        if kind == "start_op":  # its own Task, ended as the operation did
+            assert seen[0].done() and seen[0].exception() is None
+        else:  # the standing Task, still waiting for the next operation
+            assert not seen[0].done()
+            run.runner.close()
 
     asyncio.run(main())
 
 
-def test_an_operation_that_waits_goes_on_in_its_task_with_its_context():
+def test_operations_that_never_wait_make_no_task_each():
+    """The runner's standing Task is current for each operation that ends
+    at once: no Task is made per operation, none is left over."""
+    seen: list[Any] = []
+
+    async def put(op: Op) -> None:
+        seen.append(asyncio.current_task())
+        op.done("ok")
+
+    async def main() -> None:
+        runner = OpRunner()
+        before = len(asyncio.all_tasks())
+        for _ in range(5):
+            op = Op()
+            await from_callback(runner.start, op, put(op))
+            assert op.answers == [("ok", None)]
+        assert len(set(map(id, seen))) == 1  # one Task for all five
+        assert len(asyncio.all_tasks()) == before + 1
+        assert not runner.tasks
+        runner.close()
+        await asyncio.sleep(0)
+        assert seen[0].cancelled()  # close() ends it
+        assert len(asyncio.all_tasks()) == before
+
+    asyncio.run(main())
+
+
+def test_an_operation_that_waits_goes_on_in_its_task_with_its_context(kind):
     seen: dict[str, Any] = {}
     gate: list[asyncio.Future[None]] = []
 
@@ -74,22 +130,53 @@ def test_an_operation_that_waits_goes_on_in_its_task_with_its_context():
         VAR.reset(token)  # ...reset after it: the same context
         op.done("answer")
 
+    async def quick(op: Op) -> None:
+        seen["next"] = asyncio.current_task()
+        seen["next var"] = VAR.get()
+        op.done("quick")
+
     async def main() -> None:
-        op, tasks = Op(), set()
-        await from_callback(start_op, op, call(op), tasks)
-        assert op.answers == [] and len(tasks) == 1 and gate
+        run = Runner(kind)
+        op, other = Op(), Op()
+        await from_callback(run.start, op, call(op))
+        assert op.answers == [] and len(run.tasks) == 1 and gate
         assert VAR.get() == "unset"  # the step ran in the Task's context
+        # meanwhile another operation runs and ends, in a Task not the first's
+        await from_callback(run.start, other, quick(other))
+        assert other.answers == [("quick", None)]
+        assert seen["next"] is not seen["first"] and seen["next var"] == "unset"
         gate[0].set_result(None)
-        await asyncio.wait(set(tasks))
+        await asyncio.wait(set(run.tasks))
         assert op.answers == [("answer", None)]
         assert seen["first"] is seen["later"]
         assert seen["var"] == "mine"
-        assert not tasks  # dropped once done
+        assert not run.tasks  # dropped once done
+        run.runner.close()
 
     asyncio.run(main())
 
 
-def test_an_error_goes_to_the_client_as_its_type_and_message():
+def test_a_variable_an_operation_leaves_set_is_not_seen_by_the_next():
+    seen: list[tuple[Any, str]] = []
+
+    async def leaves(op: Op) -> None:
+        seen.append((asyncio.current_task(), VAR.get()))
+        VAR.set("left")  # never reset
+        op.done()
+
+    async def main() -> None:
+        runner = OpRunner()
+        for _ in range(2):
+            op = Op()
+            await from_callback(runner.start, op, leaves(op))
+        assert [var for _, var in seen] == ["unset", "unset"]
+        assert seen[0][0] is not seen[1][0]  # its Task was not reused
+        runner.close()
+
+    asyncio.run(main())
+
+
+def test_an_error_goes_to_the_client_as_its_type_and_message(kind):
     async def fails_at_once(op: Op) -> None:
         raise ValueError("bad at once")
 
@@ -98,20 +185,22 @@ def test_an_error_goes_to_the_client_as_its_type_and_message():
         raise KeyError("bad later")
 
     async def main() -> None:
-        first, later, tasks = Op(), Op(), set()
-        await from_callback(start_op, first, fails_at_once(first), tasks)
-        await from_callback(start_op, later, fails_later(later), tasks)
+        run = Runner(kind)
+        first, later = Op(), Op()
+        await from_callback(run.start, first, fails_at_once(first))
+        await from_callback(run.start, later, fails_later(later))
         assert first.answers == [(None, "ValueError: bad at once")]
-        waiting = set(tasks)
+        waiting = set(run.tasks)
         await asyncio.wait(waiting)
         assert later.answers == [(None, "KeyError: 'bad later'")]
         # answered, the Task ends as the operation would have returned
         assert all(t.exception() is None for t in waiting)
+        run.runner.close()
 
     asyncio.run(main())
 
 
-def test_an_operation_cancelled_while_waiting_is_cancelled_inside():
+def test_an_operation_cancelled_while_waiting_is_cancelled_inside(kind):
     cancelled = threading.Event()
 
     async def call(op: Op) -> None:
@@ -122,12 +211,56 @@ def test_an_operation_cancelled_while_waiting_is_cancelled_inside():
             raise
 
     async def main() -> None:
-        op, tasks = Op(), set()
-        await from_callback(start_op, op, call(op), tasks)
-        (task,) = tasks
+        run = Runner(kind)
+        op = Op()
+        await from_callback(run.start, op, call(op))
+        (task,) = run.tasks
         task.cancel()
         await asyncio.wait({task})
         assert task.cancelled() and cancelled.is_set()
+        run.runner.close()
+
+    asyncio.run(main())
+
+
+def test_close_cancels_the_operations_that_wait():
+    cancelled = threading.Event()
+
+    async def call(op: Op) -> None:
+        try:
+            await asyncio.sleep(10)
+        except asyncio.CancelledError:
+            cancelled.set()
+            raise
+
+    async def main() -> None:
+        runner = OpRunner()
+        op = Op()
+        await from_callback(runner.start, op, call(op))
+        (task,) = runner.tasks
+        runner.close()
+        await asyncio.wait({task})
+        assert task.cancelled() and cancelled.is_set()
+
+    asyncio.run(main())
+
+
+def test_an_operation_started_in_a_task_runs_in_a_task_of_its_own():
+    seen: list[Any] = []
+
+    async def put(op: Op) -> None:
+        seen.append(asyncio.current_task())
+        op.done("ok")
+
+    async def main() -> None:
+        runner = OpRunner()
+        op = Op()
+        runner.start(op, put(op))  # from this task: not eager
+        await asyncio.sleep(0)
+        await asyncio.sleep(0)
+        assert op.answers == [("ok", None)]
+        assert seen[0] is not asyncio.current_task() and seen[0].done()
+        runner.close()
 
     asyncio.run(main())
 
@@ -297,3 +430,44 @@ def test_a_call_reads_returns_applying_recorded_changes_only_there(served):  # n
         assert not chan._pending  # applied for that
 
     process.call_threadsafe(check).result(5)
+
+
+def test_a_client_that_has_its_answer_gets_the_new_took_and_returned(served):  # noqa: F811
+    """A call is answered after its took and returned were posted: a get
+    (answered by pvxs from its cache, in its own thread) of the method's or
+    the block's channel right after the answer has this call's, every time;
+    so does a new monitor's first update."""
+    from p4p import Type, Value
+
+    tp, process, server, ctx = served
+    ctx.get("FIRST.zero", timeout=5)  # both channels open, answered from cache
+    ctx.get("FIRST", timeout=5)
+    empty = Value(Type([]), {})
+    for _ in range(20):
+        ctx.rpc("FIRST.zero", empty, timeout=5)
+        took, returned = process.call_threadsafe(
+            lambda: (
+                process.get(["FIRST", "zero", "took", "timeStamp"]),
+                process.get(["FIRST", "zero", "returned", "timeStamp"]),
+            )
+        ).result(5)
+        field = ctx.get("FIRST.zero", timeout=5)
+        block = ctx.get("FIRST", timeout=5)
+        for got, prefix in ((field, ""), (block, "zero.")):
+            for which, stamp in (("took", took), ("returned", returned)):
+                where = f"{prefix}{which}.timeStamp"
+                assert got[f"{where}.nanoseconds"] == stamp["nanoseconds"], where
+                assert got[f"{where}.secondsPastEpoch"] == stamp["secondsPastEpoch"]
+    import queue
+
+    ctx.rpc("FIRST.zero", empty, timeout=5)
+    stamp = process.call_threadsafe(
+        process.get, ["FIRST", "zero", "returned", "timeStamp"]
+    ).result(5)
+    first: queue.Queue[Any] = queue.Queue()
+    sub = ctx.monitor("FIRST.zero", first.put)  # opened after the answer
+    try:
+        got = first.get(timeout=5)
+        assert got["returned.timeStamp.nanoseconds"] == stamp["nanoseconds"]
+    finally:
+        sub.close()

@@ -109,3 +109,33 @@ def test_without_last_every_leaf_is_set_each_time(hello):
         value = Value(vtype)
         assert setter(value, log)
         assert "greet.took.alarm.severity" in marked(value)
+
+
+def test_a_structure_equal_to_the_one_last_set_is_skipped_whole(hello):
+    """A structure of scalar leaves (an alarm, a method's arguments) equal
+    to what was last set is passed over in one comparison; a float zero of
+    the other sign, or a leaf set meanwhile by a setter of its own, still
+    goes out."""
+    vtype = to_value(hello).type()
+    last: dict[str, Any] = {}
+    log_setter = setter_of(hello, ["greet", "took"], last)
+    severity = setter_of(hello, ["greet", "took", "alarm", "severity"], last)
+    log = copy.deepcopy(hello["greet"]["took"])
+    log["value"] = {"name": "x", "sleep": 0.0}
+    log["present"] = ["name", "sleep"]
+    assert log_setter(Value(vtype), log)
+    assert "greet.took.alarm" in last and "greet.took.value" in last
+    again = Value(vtype)
+    assert log_setter(again, copy.deepcopy(log))
+    assert marked(again) == {}  # nothing moved: not even the float zero
+    log["value"]["sleep"] = -0.0  # equal to 0.0, not the same
+    signed = Value(vtype)
+    assert log_setter(signed, copy.deepcopy(log))
+    assert marked(signed) == {"greet.took.value.sleep": -0.0}
+    # a setter of one leaf of the alarm drops the alarm's record ...
+    assert severity(Value(vtype), 2)
+    assert "greet.took.alarm" not in last
+    # ... so the alarm the log holds (severity 0) is set again
+    back = Value(vtype)
+    assert log_setter(back, copy.deepcopy(log))
+    assert marked(back) == {"greet.took.alarm.severity": 0}

@@ -85,6 +85,8 @@ _NT_ATTRIBUTES = frozenset(
 _METHOD = "malcolm:core/Method:1.1"
 _METHOD_META = "malcolm:core/MethodMeta:1.1"
 _METHOD_LOG = "malcolm:core/MethodLog:1.0"
+#: what a scalar field of a Value is in Python (to_dict keeps it as it is)
+_SCALAR_TYPES = frozenset({str, int, float, bool})
 _TABLE = "malcolm:core/Table:1.0"
 
 Spec = Any  # a p4p type code ("s", "ad", "v"...) or ("S", id, fields)
@@ -298,8 +300,12 @@ def to_dict(value: Any) -> Any:
     A MethodLog's value keeps only the arguments it lists as ``present``
     (its structure has a field for every one the method takes)."""
     if isinstance(value, Value):
-        out: dict[str, Any] = {}
         typeid = value.getID()
+        # a structure of scalars (a call's arguments, most puts) in one C call
+        flat = value.todict()
+        if typeid != _METHOD_LOG and _SCALAR_TYPES.issuperset(map(type, flat.values())):
+            return flat if typeid == STRUCTURE else {"typeid": typeid, **flat}
+        out: dict[str, Any] = {}
         if typeid != STRUCTURE:
             out["typeid"] = typeid
         vtype = None  # the type, made (a copy) only if needed

@@ -30,8 +30,17 @@ NTURI = "epics:nt/NTURI:1.0"
 # (id of a returns meta's elements, a result's keys) -> (those elements, the
 # result's spec and Type): a method's result typed by its metas alone has
 # the same type each call (the elements are kept, so their id is not reused)
-_RESULT_TYPES: dict[tuple[int, tuple[str, ...]], tuple[Any, Any, Any]] = {}
+_RESULT_TYPES: dict[tuple[int, tuple[str, ...]], tuple[Any, Any, Any, Any]] = {}
 _RESULT_TYPES_MAX = 256
+
+# a scalar field's code -> the Python types a Value takes for it as they are
+_SCALAR_FITS: dict[str, tuple[type, ...]] = {
+    **{code: (int,) for code in "bBhHiIlL"},
+    "f": (float, int),
+    "d": (float, int),
+    "s": (str,),
+    "?": (bool,),
+}
 
 # where a pvRequest may carry the method's name
 _METHOD_PLACES = ("method", "record._options.method", "field.method")
@@ -74,7 +83,9 @@ def _args(value: Any, where: str) -> dict[str, Any]:
 def method_args(
     path: list[str], value: Any, request: Any
 ) -> tuple[str, str, dict[str, Any]]:
-    """``(mri, method, arguments)`` of a call on the channel of ``path``."""
+    """``(mri, method, arguments)`` of a call on the channel of ``path``;
+    ``request`` is the pvRequest, or a function giving it (called only for
+    a call on a block's channel, the one form that reads it)."""
     channel = ".".join(path)
     if isinstance(value, Value) and value.getID() == NTURI:
         try:
@@ -93,7 +104,7 @@ def method_args(
         return mri, method, _args(query, f"{target}: query")
     if len(path) == 2:
         return path[0], path[1], _args(value, channel)
-    method = _request_method(request)
+    method = _request_method(request() if callable(request) else request)
     if method is None:
         raise BadValueError(
             f"{channel}: a call on a block's channel needs the method's name in "
@@ -120,6 +131,14 @@ def result_value(result: Any, returns: Any) -> Value:
             spec = _freeze(("S", STRUCTURE, fields))
             if len(_RESULT_TYPES) >= _RESULT_TYPES_MAX:
                 _RESULT_TYPES.clear()
-            known = _RESULT_TYPES[key] = (elements, spec, _type(spec))
+            scalars = tuple(_SCALAR_FITS.get(sub) for _, sub in fields)
+            if None in scalars:
+                scalars = None
+            known = _RESULT_TYPES[key] = (elements, spec, _type(spec), scalars)
+        scalars = known[3]
+        if scalars is not None and all(
+            type(v) in fit for v, fit in zip(result.values(), scalars)
+        ):  # every field a scalar of a type it takes as it is
+            return Value(known[2], result)
         return Value(known[2], _fill(known[1], result))
     return map_to_value(result, elements)

@@ -41,7 +41,7 @@ from malcolm.core import (
 
 from .convert import STRUCTURE, assign, fits, spec_at, to_dict, to_value, type_spec
 from .errlog import route_errlog
-from .ops import LoopSharedPV, error_text, start_op
+from .ops import LoopSharedPV, OpRunner, error_text
 from .results import method_args, result_value, version_tag
 from .setters import Setter, compile_setter
 
@@ -51,6 +51,11 @@ log = logging.getLogger(__name__)
 
 # SharedPV.post without p4p's wrap step (the identity here: no nt)
 _post = _RawSharedPV.post
+
+# a put's changed set that is a field's value alone; what to_dict and
+# _plain_put give back as it is
+_VALUE = {"value"}
+_SCALARS = frozenset({float, int, str, bool})
 
 #: seconds a channel nobody is connected to is kept (a client reconnecting)
 RELEASE_DELAY = 2.0
@@ -77,8 +82,9 @@ class _Channel:
         self._update: Value | None = None
         self.sub: Any = None
         self.closed = False
-        # change path -> its compiled setter, for self.spec (reset with it)
-        self._setters: dict[tuple[str, ...], Setter] = {}
+        # change path (relative to the block) -> its compiled setter and the
+        # path relative to the channel, for self.spec (reset with it)
+        self._setters: dict[tuple[str, ...], tuple[Setter, tuple[str, ...]]] = {}
         # leaf -> what the setters last set it to, to leave it unmarked when
         # it is set to that again (malcolm.io.pva.setters); cleared whenever
         # the PV's value is set another way
@@ -86,6 +92,7 @@ class _Channel:
         # the block meta and a meta channel go whole: never the fast path
         self._fast_ok = self.path[1:] != ["meta"]
         self._block = len(self.path) == 1  # the whole block's channel
+        self._skip = len(self.path) - 1  # what begins a block's path of it
 
     @property
     def data(self) -> Any:
@@ -140,7 +147,9 @@ class _Channel:
         if self.closed:
             return
         try:
-            self.sub = self.server.process.subscribe(self.path, self._on_changes)
+            self.sub = self.server.process.subscribe(
+                self.path, self._on_changes, below=self._on_below
+            )
         except NotFoundError:  # gone between the look-up and now
             self.server._forget(self)
 
@@ -165,12 +174,26 @@ class _Channel:
         return len(self.path) == 1 and any(c[0][:1] == ["meta"] for c in changes)
 
     def _on_changes(self, changes: list[list[Any]]) -> None:
+        """Changes relative to the channel's path (the first, the whole of
+        it; then what :meth:`_on_below` does not get)."""
+        try:
+            if self.closed:
+                return
+            self._apply(changes)
+        except Exception as e:  # a monitor must never stop the process
+            log.exception("pva %s: %s", self.name, error_text(e))
+
+    def _on_below(self, changes: list[list[Any]]) -> None:
+        """Changes lying below the channel's path, as the block gave them
+        (paths relative to the block: a field channel's begin with its
+        field; shared with other subscribers, so never changed here)."""
         try:
             if self.closed:
                 return
             if self._fast_ok and self._data is not None and self._apply_fast(changes):
                 return
-            self._apply(changes)
+            skip = self._skip
+            self._apply([[list(c[0][skip:]), *c[1:]] for c in changes])
         except Exception as e:  # a monitor must never stop the process
             log.exception("pva %s: %s", self.name, error_text(e))
 
@@ -236,16 +259,16 @@ class _Channel:
         self.pv.post(value)
 
     def _apply_fast(self, changes: list[list[Any]]) -> bool:
-        """Post ``changes`` if each sets a field whose type it still fits
-        (the common case: a value, its alarm and timeStamp); False, with
-        nothing posted, for anything else (deletions, the whole channel, the
-        block's meta, a new shape), which :meth:`_apply` does in full."""
+        """Post ``changes`` (paths relative to the block, see
+        :meth:`_on_below`) if each sets a field whose type it still fits (the
+        common case: a value, its alarm and timeStamp); False, with nothing
+        posted, for anything else (the block's meta, a new shape), which
+        :meth:`_apply` does in full."""
         value = self._update  # self._next_update(), in line
         if value is None:
             value = self._update = Value(self.type)
         else:
             value.unmark()
-        block = self._block
         setters = self._setters
         # each change's data is recorded, applied to data when it is next
         # read: a path's latest change moved last, so applying them in order
@@ -253,28 +276,36 @@ class _Channel:
         # a change that does not fit is harmless: _apply then applies the
         # recorded ones and every change again, which gives the same data
         pending = self._pending
-        for change in changes:
-            if len(change) != 2:
-                return False
-            path = change[0]
-            if not path or (block and path[0] == "meta"):
-                return False
-            key = tuple(path)
-            setter = setters.get(key)
-            if setter is None:
-                sub_spec = spec_at(self.spec, path)
-                if sub_spec is None:
+        try:
+            for path, data in changes:  # a deletion ([path]) does not unpack
+                known = setters.get(tuple(path))
+                if known is None:
+                    known = self._setter(path)
+                    if known is None:
+                        return False
+                setter, where = known
+                if not setter(value, data):
                     return False
-                setter = setters[key] = compile_setter(
-                    sub_spec, ".".join(path), last=self._last
-                )
-            data = change[1]
-            if not setter(value, data):
-                return False
-            pending.pop(key, None)
-            pending[key] = data
+                pending.pop(where, None)
+                pending[where] = data
+        except ValueError:  # (or a setter's: _apply then does it in full)
+            return False
         _post(self.pv, value)
         return True
+
+    def _setter(self, path: list[str]) -> tuple[Setter, tuple[str, ...]] | None:
+        """The compiled setter of a change at ``path`` (relative to the
+        block) and the path it sets relative to the channel; None if that is
+        not a field of the channel's type (or the block's meta)."""
+        where = tuple(path[self._skip :])
+        if self._block and where[:1] == ("meta",):
+            return None  # the block meta (and its version tag) goes whole
+        sub_spec = spec_at(self.spec, where)
+        if sub_spec is None:
+            return None
+        setter = compile_setter(sub_spec, ".".join(where), last=self._last)
+        known = self._setters[tuple(path)] = (setter, where)
+        return known
 
     def _reopen(self, spec: Any = None) -> None:
         self._setters.clear()
@@ -315,16 +346,24 @@ class _Channel:
 
     # ---- operations, on the loop (LoopSharedPV hands them there)
     def put(self, pv: SharedPV, op: Any) -> None:
-        start_op(op, self._put(op), self.server._tasks)
+        self.server._ops.start(op, self._put(op))
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
-        start_op(op, self._rpc(op), self.server._tasks)
+        self.server._ops.start(op, self._rpc(op))
 
     async def _put(self, op: Any) -> None:
         value = op.value()
         mri = self.path[0]
+        changed = value.changedSet()
+        if changed == _VALUE and len(self.path) == 2:  # a field's value: most
+            new = value["value"]
+            if type(new) not in _SCALARS:
+                new = _plain_put(to_dict(new))
+            await self.server.process.put(self.path, new)
+            op.done()
+            return
         puts: dict[str, Any] = {}  # field -> new value, in the order given
-        for dotted in sorted(value.changedSet()):
+        for dotted in sorted(changed):
             parts = dotted.split(".")
             if len(self.path) == 2:
                 field, rest, prefix = self.path[1], parts, ""
@@ -343,7 +382,7 @@ class _Channel:
         op.done()
 
     async def _rpc(self, op: Any) -> None:
-        mri, method, args = method_args(self.path, op.value(), op.pvRequest())
+        mri, method, args = method_args(self.path, op.value(), op.pvRequest)
         process = self.server.process
         result = await process.post([mri, method], args)
         op.done(result_value(result, self._returns(mri, method)))
@@ -353,10 +392,12 @@ class _Channel:
         recorded are applied first only if one of them is at, above or below
         ``path`` (a call's took and returned leave its returns as they are,
         and are not applied for every call)."""
+        first = path[0]
         for key in self._pending:
-            n = min(len(key), len(path))
-            if key[:n] == path[:n]:
-                return self.data
+            if key[0] == first:  # (most differ there: a call's took, returned)
+                n = min(len(key), len(path))
+                if key[:n] == path[:n]:
+                    return self.data
         return self._data
 
     def _returns(self, mri: str, method: str) -> Any:
@@ -479,7 +520,9 @@ class PvaServer:
         self._provider: DynamicProvider | None = None
         self._server: Server | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._tasks: set[asyncio.Task[Any]] = set()
+        # puts and calls: run on the loop; those waiting in _tasks
+        self._ops = OpRunner()
+        self._tasks: set[asyncio.Task[Any]] = self._ops.tasks
 
     @property
     def address(self) -> str:
@@ -521,8 +564,7 @@ class PvaServer:
             chan.close()
         for pv in kept:
             pv.close(destroy=True)
-        for task in list(self._tasks):
-            task.cancel()
+        self._ops.close()
 
     # ---- names (any thread)
     def _path_of(self, name: str) -> list[str] | None:

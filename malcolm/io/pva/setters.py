@@ -17,7 +17,11 @@ of str equal to it): the update carries only what changed (an alarm or a
 timeStamp's seconds mostly stay, only its nanoseconds move), which costs
 less to set, to post and to send. The dict is the channel's, shared by all
 its setters (two setters may set one leaf); whoever sets the channel's
-value another way clears it.
+value another way clears it. A structure of scalar leaves that does not
+change every time (an alarm, a method's arguments; not a timeStamp) is
+recorded there whole too: given one equal to it (its float zeros of the
+same sign), its setter passes over it in one comparison; a setter that
+sets one of its leaves alone drops the record.
 """
 
 from __future__ import annotations
@@ -71,30 +75,26 @@ def compile_setter(
 _MISSING = object()
 
 
-def _changes(data: Any, before: Any) -> bool:
-    """Whether a leaf that holds ``before`` (``MISSING``: not known) gets
-    something new from ``data`` (of a type that fits it as it is): not
-    equal, or a zero that may be a float's (0.0 and -0.0 are equal, not the
-    same). The generated setters have this in line."""
-    return (
-        before is _MISSING
-        or data != before
-        or (not data and (type(data) is float or type(before) is float))
-    )
-
-
 def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter:
     exact = _EXACT.get(spec)
     if exact is not None:
         if last is not None:
+            parent = dotted.rpartition(".")[0]  # its structure's record
 
             def remembered(value: Value, data: Any) -> bool:
                 if type(data) in exact:
-                    if _changes(data, last.get(dotted, _MISSING)):
+                    # new: not equal (_MISSING is unequal to anything), or a
+                    # zero that may be a float's (0.0 == -0.0)
+                    before = last.get(dotted, _MISSING)
+                    if data != before or (
+                        not data and (type(data) is float or type(before) is float)
+                    ):
                         value[dotted] = last[dotted] = data
+                        last.pop(parent, None)
                     return True
                 if fits(spec, data):
                     last.pop(dotted, None)
+                    last.pop(parent, None)
                     value[dotted] = _fill(spec, data)
                     return True
                 return False
@@ -116,11 +116,26 @@ def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter
         if fits(spec, data):
             if last is not None:
                 last.pop(dotted, None)
+                last.pop(dotted.rpartition(".")[0], None)
             value[dotted] = _fill(spec, data)
             return True
         return False
 
     return general
+
+
+#: structures whose leaves change every time: no record of them is kept
+_ALWAYS_NEW = frozenset({"time_t"})
+
+
+def _recordable(spec: Spec) -> bool:
+    """Whether a structure's setter keeps a record of the whole structure as
+    last set (with ``last``): only for one of scalar leaves (its float
+    zeros compared by their sign too: ``0.0 == -0.0``) that does not change
+    every time (a timeStamp)."""
+    if spec[1] in _ALWAYS_NEW:
+        return False
+    return all(isinstance(sub, str) and sub in _EXACT for _, sub in spec[2])
 
 
 class _Generator:
@@ -151,9 +166,28 @@ class _Generator:
         pad = "    " * depth
         names = tuple(k for k, _ in spec[2])
         log = spec[1] == _METHOD_LOG
+        lines: list[str] = []
+        record = self.remember and _recordable(spec)
+        if record:
+            # the whole structure as last set (its shape checked then): equal,
+            # nothing to check or set; a float zero equal to the one recorded
+            # may differ in sign
+            before = self.var()
+            zeros = "".join(
+                f" or (not {data}.get({key!r}) and"
+                f" str({data}.get({key!r})) != str({before}.get({key!r})))"
+                for key, sub in spec[2]
+                if sub in ("f", "d")
+            )
+            lines += [
+                f"{pad}{before} = last.get({dotted!r}, MISSING)\n",
+                f"{pad}if {before} is MISSING or {data} != {before}{zeros}:\n",
+            ]
+            depth += 1
+            pad += "    "
         keys = self.var()
         typed, plain = self.const(("typeid", *names)), self.const(names)
-        lines = [
+        lines += [
             f"{pad}if not isinstance({data}, dict):\n",
             f"{pad}    return False\n",
             f"{pad}if {data}.get('typeid', {STRUCTURE!r}) != {spec[1]!r}:\n",
@@ -172,8 +206,14 @@ class _Generator:
         for key, sub in spec[2]:
             var = self.var()
             lines.append(f"{pad}{var} = {data}.get({key!r})\n")
+            if not isinstance(sub, tuple) and _EXACT.get(sub) is not None:
+                # a scalar leaf: its type tested first (None is not of it)
+                lines += self.scalar(sub, prefix + key, var, pad)
+                continue
             lines.append(f"{pad}if {var} is not None:\n")
             lines += self.field(sub, prefix + key, log and key == "value", var, depth)
+        if record:
+            lines.append(f"{pad}last[{dotted!r}] = {data}.copy()\n")
         return lines
 
     def field(
@@ -186,9 +226,11 @@ class _Generator:
         exact = _EXACT.get(spec)
         lines = []
         if spec == "as":  # a list of str as it is (a MethodLog's present)
+            # equal to what it holds (a list of str): no look at each item
+            same = f"{data} == last.get({where}) or " if self.remember else ""
             lines += [
-                f"{pad}if type({data}) is list and all(\n",
-                f"{pad}    type(x) is str for x in {data}\n",
+                f"{pad}if type({data}) is list and (\n",
+                f"{pad}    {same}all(type(x) is str for x in {data})\n",
                 f"{pad}):\n",
                 *self.store(pad + "    ", where, data, f"list({data})"),
                 f"{pad}elif fits({sub}, {data}):\n",
@@ -197,7 +239,7 @@ class _Generator:
             types = self.const(exact)
             lines += [
                 f"{pad}if type({data}) in {types}:\n",
-                *self.store(pad + "    ", where, data, data),
+                *self.store(pad + "    ", where, data, data, spec in ("f", "d")),
                 f"{pad}elif fits({sub}, {data}):\n",
             ]
         else:
@@ -210,18 +252,53 @@ class _Generator:
             f"{pad}    return False\n",
         ]
 
-    def store(self, pad: str, where: str, data: str, kept: str) -> list[str]:
+    def scalar(self, spec: str, dotted: str, data: str, pad: str) -> list[str]:
+        """Lines that set a scalar leaf from ``data`` (maybe None: left as it
+        is), or return False if it does not fit."""
+        sub, where = self.const(spec), repr(dotted)
+        types = self.const(_EXACT[spec])
+        if self.remember and spec not in ("f", "d"):
+            stored = [
+                f"{pad}    if {data} != last.get({where}, MISSING):\n",
+                f"{pad}        value[{where}] = {data}\n",
+                f"{pad}        last[{where}] = {data}\n",
+            ]
+        else:
+            stored = self.store(pad + "    ", where, data, data, spec in ("f", "d"))
+        forget = [f"{pad}        last.pop({where}, None)\n"] if self.remember else []
+        return [
+            f"{pad}if type({data}) in {types}:\n",
+            *stored,
+            f"{pad}elif {data} is not None:\n",
+            f"{pad}    if fits({sub}, {data}):\n",
+            *forget,
+            f"{pad}        value[{where}] = _fill({sub}, {data})\n",
+            f"{pad}    else:\n",
+            f"{pad}        return False\n",
+        ]
+
+    def store(
+        self, pad: str, where: str, data: str, kept: str, floats: bool = False
+    ) -> list[str]:
         """Lines that set leaf ``where`` to ``data`` (with ``last``: unless it
-        holds that already; ``kept`` is what ``last`` keeps of it)."""
+        holds that already; ``kept`` is what ``last`` keeps of it; ``floats``:
+        it may be a float, whose zero is always set). ``MISSING`` is unequal
+        to anything ``data`` may be (an int, str, bool, float or list)."""
         if not self.remember:
             return [f"{pad}value[{where}] = {data}\n"]
         before = self.var()
+        if floats:
+            changed = [
+                f"{pad}if {data} != {before} or (\n",
+                f"{pad}    not {data}\n",
+                f"{pad}    and (type({data}) is float or type({before}) is float)\n",
+                f"{pad}):\n",
+            ]
+        else:
+            changed = [f"{pad}if {data} != {before}:\n"]
         return [
             f"{pad}{before} = last.get({where}, MISSING)\n",
-            f"{pad}if {before} is MISSING or {data} != {before} or (\n",
-            f"{pad}    not {data}\n",
-            f"{pad}    and (type({data}) is float or type({before}) is float)\n",
-            f"{pad}):\n",
+            *changed,
             f"{pad}    value[{where}] = {data}\n",
             f"{pad}    last[{where}] = {kept}\n",
         ]
