@@ -52,6 +52,9 @@ log = logging.getLogger(__name__)
 #: controller's ``phase_timeouts`` names it
 DEFAULT_PHASE_TIMEOUT = 60.0
 
+#: not yet looked up (None is a lookup's answer: no such method)
+_UNKNOWN: Any = object()
+
 
 @functools.cache
 def builtin_phase_roles() -> dict[str, str]:
@@ -102,6 +105,8 @@ class Controller(Interpreter, Operations, Health):
         self.device = Device(self)
         self.state_listeners: list[Callable[[str, str], None]] = []
         self.puts_in_flight = PutsInFlight()
+        #: attribute name -> this controller's ``put_<name>`` (None: it has none)
+        self._put_methods: dict[str, Callable[[Any], Any] | None] = {}
         self._state = self.model.initial
         self._init_operations()
         self._init_health()
@@ -277,14 +282,22 @@ class Controller(Interpreter, Operations, Health):
         if rule is None and not attr.meta.writeable:
             raise NotWriteableError(f"{self.mri}.{name} is read-only")
         value = attr.validate(value)
-        handler = getattr(self, f"put_{name}", None) or attr.put_handler
-        with self.puts_in_flight.put(name):
+        own = self._put_methods.get(name, _UNKNOWN)
+        if own is _UNKNOWN:  # looked up once per attribute, not per put
+            own = self._put_methods[name] = getattr(self, f"put_{name}", None)
+        handler = own or attr.put_handler
+        # begin/end rather than the context manager: once per put
+        puts_in_flight = self.puts_in_flight
+        entry = puts_in_flight.begin(name)
+        try:
             if handler is None:
                 attr.set_value(value, validate=False)
                 return
             result = handler(value)
             if asyncio.iscoroutine(result):
                 await result
+        finally:
+            puts_in_flight.end(name, entry)
 
     def writer_of(self, field: str) -> str | None:
         """The origin (an mri) of the latest put to ``field`` in flight."""
