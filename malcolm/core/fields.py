@@ -194,18 +194,7 @@ class MethodLog:
     typeid = "malcolm:core/MethodLog:1.0"
 
     def to_dict(self) -> dict[str, Any]:
-        value = self.value
-        if type(value) is dict and _PLAIN.issuperset(map(type, value.values())):
-            value = dict(value)  # plain() of scalars (most arguments), in C
-        else:
-            value = plain(value)
-        return {
-            "typeid": self.typeid,
-            "value": value,
-            "present": list(self.present),
-            "alarm": self.alarm.to_dict(),
-            "timeStamp": self.timeStamp.to_dict(),
-        }
+        return _log_dict(self.value, self.present, self.alarm, self.timeStamp)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> MethodLog:
@@ -215,6 +204,37 @@ class MethodLog:
             Alarm.from_dict(d.get("alarm", {})),
             TimeStamp.from_dict(d.get("timeStamp", {})),
         )
+
+
+#: Alarm.ok as plain data, copied for each log that has it (most)
+_OK_ALARM = Alarm.ok.to_dict()
+
+
+def _log_dict(
+    value: Any, present: list[str], alarm: Alarm, stamp: TimeStamp
+) -> dict[str, Any]:
+    """A MethodLog as plain data (its to_dict), from its parts."""
+    if type(value) is dict and _PLAIN.issuperset(map(type, value.values())):
+        value = dict(value)  # plain() of scalars (most arguments), in C
+    else:
+        value = plain(value)
+    return {
+        "typeid": MethodLog.typeid,
+        "value": value,
+        "present": list(present),
+        "alarm": dict(_OK_ALARM) if alarm is Alarm.ok else alarm.to_dict(),
+        "timeStamp": stamp.to_dict(),
+    }
+
+
+def _method_log(
+    value: dict[str, Any], present: list[str], alarm: Alarm, stamp: TimeStamp
+) -> MethodLog:
+    """MethodLog(value, present, alarm, stamp) without the dataclass's
+    ``__init__`` (once per call of every method, twice)."""
+    log = object.__new__(MethodLog)
+    log.__dict__.update(value=value, present=present, alarm=alarm, timeStamp=stamp)
+    return log
 
 
 class Method(Field):
@@ -246,9 +266,13 @@ class Method(Field):
         if owner is not None and not owner.here():
             if self._off_loop(self.set_took, args):
                 return
-        self.took = log = MethodLog(dict(args), list(args), Alarm.ok, TimeStamp.now())
+        value = dict(args)
+        present = list(value)
+        stamp = TimeStamp.now()
+        self.took = _method_log(value, present, Alarm.ok, stamp)
         if block is not None:
-            block.notify([[[self.name, "took"], log.to_dict()]])
+            change = [[self.name, "took"], _log_dict(value, present, Alarm.ok, stamp)]
+            block.notify([change])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
         block = self.block
@@ -256,10 +280,13 @@ class Method(Field):
         if owner is not None and not owner.here():
             if self._off_loop(self.set_returned, value, alarm):
                 return
-        value = dict(value or {})
-        self.returned = log = MethodLog(value, list(value), alarm, TimeStamp.now())
+        value = dict(value) if value else {}
+        present = list(value)
+        stamp = TimeStamp.now()
+        self.returned = _method_log(value, present, alarm, stamp)
         if block is not None:
-            block.notify([[[self.name, "returned"], log.to_dict()]])
+            change = [[self.name, "returned"], _log_dict(value, present, alarm, stamp)]
+            block.notify([change])
 
     def set_writeable(self, writeable: bool) -> None:
         if self._off_loop(self.set_writeable, writeable):

@@ -24,10 +24,9 @@ class TimeStamp:
         # field (half the cost; every change of every attribute takes one)
         seconds, nanoseconds = divmod(time.time_ns(), 1_000_000_000)
         stamp = object.__new__(cls)
-        fields = stamp.__dict__
-        fields["secondsPastEpoch"] = seconds
-        fields["nanoseconds"] = nanoseconds
-        fields["userTag"] = 0
+        stamp.__dict__.update(
+            secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
+        )
         return stamp
 
     def to_time(self) -> float:
