@@ -19,6 +19,7 @@ import asyncio
 import functools
 import logging
 from collections.abc import Callable, Mapping, Sequence
+from types import CoroutineType
 from typing import Any, ClassVar
 
 from malcolm.core import (
@@ -257,15 +258,21 @@ class Controller(Interpreter, Operations, Health):
         args = method.meta.validate_args(f"{self.mri}.{name}", params or {})
         self.check_allowed(name)
         method.set_took(args)
+        handler = method.handler
         try:
-            result = method.handler(**args) if method.handler else None
-            if asyncio.iscoroutine(result):
+            result = handler(**args) if handler else None
+            # an async def's coroutine, or nothing, told apart without a call
+            if type(result) is CoroutineType or (
+                result is not None and asyncio.iscoroutine(result)
+            ):
                 result = await result
         except Exception as e:
             method.set_returned({}, Alarm.major(describe(e)))
             raise
-        returned = result if isinstance(result, Mapping) else {}
-        method.set_returned(returned, Alarm.ok)
+        if type(result) is dict or isinstance(result, Mapping):
+            method.set_returned(result, Alarm.ok)
+        else:
+            method.set_returned({}, Alarm.ok)
         return result
 
     async def put(self, name: str, value: Any) -> None:

@@ -259,12 +259,18 @@ class Process:
 
     async def put(self, path: Sequence[str], value: Any) -> None:
         """Put to ``[mri, attribute]`` or ``[mri, attribute, "value"]``."""
-        mri, name = self._field_path(path, "put")
+        if len(path) == 2:  # the common case, as _field_path would give it
+            mri, name = path
+        else:
+            mri, name = self._field_path(path, "put")
         await self.get_controller(mri).put(name, value)
 
     async def post(self, path: Sequence[str], params: dict[str, Any] | None = None):
         """Call a method at ``[mri, method]``; returns what it returns."""
-        mri, name = self._field_path(path, "post")
+        if len(path) == 2:  # the common case, as _field_path would give it
+            mri, name = path
+        else:
+            mri, name = self._field_path(path, "post")
         return await self.get_controller(mri).call(name, params or {})
 
     @staticmethod
@@ -371,7 +377,8 @@ class Process:
         if not subs:
             return  # nothing queued: an outer _flush (if any) has the rest
         queue = self._queue
-        for sub in list(subs):
+        # no copy of subs: nothing below changes them (callbacks run in _flush)
+        for sub in subs:
             if sub.below is not None:
                 touching = _below(sub.rest, changes)
                 if touching is not None:

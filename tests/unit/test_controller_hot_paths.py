@@ -5,19 +5,24 @@ chosen, state checks, argument validation and the took/returned logs."""
 from __future__ import annotations
 
 import asyncio
+from types import MappingProxyType
+from typing import Any
 
 import pytest
 
 from malcolm.controllers.base import Controller
 from malcolm.controllers.writers import PutsInFlight
 from malcolm.core import (
+    Alarm,
     BadValueError,
     MapMeta,
     NotAllowedError,
     NumberMeta,
     Process,
     StringMeta,
+    TimeStamp,
 )
+from malcolm.core.fields import MethodLog
 from malcolm.hooks.origin import writing_as
 from malcolm.parts import Part
 
@@ -169,5 +174,42 @@ def test_call_validates_checks_state_and_logs_took_and_returned():
         with pytest.raises(NotAllowedError, match=r"T: reset\(\)|T: disable\(\)"):
             await c.call("disable")
         assert c.block.disable.took.value == {}
+
+    asyncio.run(main())
+
+
+def test_the_logs_delivered_are_the_logs_kept_and_not_shared():
+    class Returns(Part):
+        def setup(self, registrar) -> None:
+            registrar.add_method(self.view, returns=MapMeta({"a": NumberMeta()}, ["a"]))
+
+        def view(self, a: float = 1.5) -> Any:
+            """Return a mapping that is not a dict."""
+            return MappingProxyType({"a": a})
+
+    async def main() -> None:
+        c = await _controller(Returns("r"))
+        seen: list[Any] = []
+        c.process.subscribe(["T", "view"], seen.append)
+        result = await c.call("view", {})
+        assert dict(result) == {"a": 1.5}
+        method = c.block.view
+        assert method.returned.value == {"a": 1.5}
+        took, returned = seen[1][0], seen[2][0]
+        assert took == [["took"], method.took.to_dict()]
+        assert returned == [["returned"], method.returned.to_dict()]
+        assert returned[1]["alarm"] == Alarm.ok.to_dict()
+        assert returned[1]["value"] is not method.returned.value
+        returned[1]["alarm"]["message"] = "changed by a subscriber"
+        assert method.returned.to_dict()["alarm"] == Alarm.ok.to_dict()
+        assert method.took.to_dict()["alarm"]["message"] == ""
+        log = MethodLog({"x": [1]}, ["x"], Alarm.major("m"), TimeStamp(4, 5))
+        assert log.to_dict() == {
+            "typeid": "malcolm:core/MethodLog:1.0",
+            "value": {"x": [1]},
+            "present": ["x"],
+            "alarm": Alarm.major("m").to_dict(),
+            "timeStamp": TimeStamp(4, 5).to_dict(),
+        }
 
     asyncio.run(main())
