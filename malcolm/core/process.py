@@ -39,6 +39,8 @@ class Subscription:
         self.delta = delta
         #: gets the block's own changes lying below the path (see subscribe)
         self.below = below
+        #: the field subscribed to, for a path [mri, field] (else None)
+        self.field: str | None = self.rest[0] if len(self.rest) == 1 else None
         self.active = True
 
     def __repr__(self) -> str:
@@ -379,17 +381,40 @@ class Process:
         queue = self._queue
         # no copy of subs: nothing below changes them (callbacks run in _flush)
         for sub in subs:
-            if sub.below is not None:
-                touching = _below(sub.rest, changes)
-                if touching is not None:
-                    if touching:
-                        queue.append((sub, touching, sub.below))
-                    continue
+            below = sub.below
+            if below is not None:
+                field = sub.field
+                if field is not None:
+                    # a field's subscriber (the common case), _below in line:
+                    # changes all below the field go as they are, none: skip
+                    hit = other = False
+                    for change in changes:
+                        path = change[0]
+                        if not path:
+                            break  # the block replaced or deleted
+                        if path[0] == field:
+                            if len(path) == 1:
+                                break  # the field replaced or deleted
+                            hit = True
+                        else:
+                            other = True
+                    else:
+                        if hit:
+                            touching = _below(sub.rest, changes) if other else changes
+                            queue.append((sub, touching, below))
+                        continue
+                else:
+                    touching = _below(sub.rest, changes)
+                    if touching is not None:
+                        if touching:
+                            queue.append((sub, touching, below))
+                        continue
             relative = self._relative(sub, changes)
             if relative:
                 payload = relative if sub.delta else self._get_or_none(sub.path)[1]
                 queue.append((sub, payload, sub.callback))
-        self._flush()
+        if not self._delivering:  # else the outer _flush delivers these
+            self._flush()
 
     def _flush(self) -> None:
         if self._delivering:
