@@ -227,14 +227,25 @@ def _log_dict(
     }
 
 
-def _method_log(
-    value: dict[str, Any], present: list[str], alarm: Alarm, stamp: TimeStamp
-) -> MethodLog:
-    """MethodLog(value, present, alarm, stamp) without the dataclass's
-    ``__init__`` (once per call of every method, twice)."""
+def _new_log(value: dict[str, Any], alarm: Alarm) -> tuple[MethodLog, dict[str, Any]]:
+    """A MethodLog of ``value`` (all its keys present) with ``alarm``, stamped
+    now, and its plain data (its to_dict): once per call of every method,
+    twice, so made without the dataclass's ``__init__`` or further calls."""
+    stamp, stamp_dict = TimeStamp.now_and_dict()
+    present = list(value)
     log = object.__new__(MethodLog)
     log.__dict__.update(value=value, present=present, alarm=alarm, timeStamp=stamp)
-    return log
+    if _PLAIN.issuperset(map(type, value.values())):
+        plain_value: Any = dict(value)  # plain() of scalars (most), in C
+    else:
+        plain_value = plain(value)
+    return log, {
+        "typeid": MethodLog.typeid,
+        "value": plain_value,
+        "present": list(present),
+        "alarm": dict(_OK_ALARM) if alarm is Alarm.ok else alarm.to_dict(),
+        "timeStamp": stamp_dict,
+    }
 
 
 class Method(Field):
@@ -266,13 +277,9 @@ class Method(Field):
         if owner is not None and not owner.here():
             if self._off_loop(self.set_took, args):
                 return
-        value = dict(args)
-        present = list(value)
-        stamp = TimeStamp.now()
-        self.took = _method_log(value, present, Alarm.ok, stamp)
+        self.took, data = _new_log(dict(args), Alarm.ok)
         if block is not None:
-            change = [[self.name, "took"], _log_dict(value, present, Alarm.ok, stamp)]
-            block.notify([change])
+            block.notify([[[self.name, "took"], data]])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
         block = self.block
@@ -280,13 +287,9 @@ class Method(Field):
         if owner is not None and not owner.here():
             if self._off_loop(self.set_returned, value, alarm):
                 return
-        value = dict(value) if value else {}
-        present = list(value)
-        stamp = TimeStamp.now()
-        self.returned = _method_log(value, present, alarm, stamp)
+        self.returned, data = _new_log(dict(value) if value else {}, alarm)
         if block is not None:
-            change = [[self.name, "returned"], _log_dict(value, present, alarm, stamp)]
-            block.notify([change])
+            block.notify([[[self.name, "returned"], data]])
 
     def set_writeable(self, writeable: bool) -> None:
         if self._off_loop(self.set_writeable, writeable):
