@@ -25,6 +25,7 @@ from typing import Any, ClassVar
 from malcolm.core import (
     Alarm,
     Attribute,
+    BadValueError,
     Block,
     ChoiceMeta,
     Method,
@@ -290,7 +291,10 @@ class Controller(Interpreter, Operations, Health):
             )
         if rule is None and not attr.meta.writeable:
             raise NotWriteableError(f"{self.mri}.{name} is read-only")
-        value = attr.validate(value)
+        try:  # attr.validate, in line
+            value = attr.meta.validate(value)
+        except BadValueError as e:
+            raise BadValueError(f"{self.mri}.{name}: {e}") from None
         own = self._put_methods.get(name, _UNKNOWN)
         if own is _UNKNOWN:  # looked up once per attribute, not per put
             own = self._put_methods[name] = getattr(self, f"put_{name}", None)

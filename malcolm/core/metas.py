@@ -157,9 +157,13 @@ class NumberMeta(Meta):
         self.display = dict(display or {})
 
     def validate(self, value: Any) -> int | float:
-        value = _number(self.dtype, value)
-        lo = self.display.get("limitLow")
-        hi = self.display.get("limitHigh")
+        if type(value) is not float or self.dtype != "float64":
+            value = _number(self.dtype, value)  # (a float64's float is itself)
+        display = self.display
+        if not display:  # most metas: no limits to test
+            return value
+        lo = display.get("limitLow")
+        hi = display.get("limitHigh")
         if lo is not None and hi is not None and lo < hi and not lo <= value <= hi:
             raise BadValueError(f"{value} is outside the limits [{lo}, {hi}]")
         return value

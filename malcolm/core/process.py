@@ -265,7 +265,8 @@ class Process:
             mri, name = path
         else:
             mri, name = self._field_path(path, "put")
-        await self.get_controller(mri).put(name, value)
+        controller = self._controllers.get(mri) or self.get_controller(mri)
+        await controller.put(name, value)
 
     async def post(self, path: Sequence[str], params: dict[str, Any] | None = None):
         """Call a method at ``[mri, method]``; returns what it returns."""
@@ -273,7 +274,8 @@ class Process:
             mri, name = path
         else:
             mri, name = self._field_path(path, "post")
-        return await self.get_controller(mri).call(name, params or {})
+        controller = self._controllers.get(mri) or self.get_controller(mri)
+        return await controller.call(name, params or {})
 
     @staticmethod
     def _field_path(path: Sequence[str], what: str) -> tuple[str, str]:
