@@ -107,13 +107,19 @@ class Attribute(Field):
         if validate:
             value = self.validate(value)
         self.value = value
-        self.timeStamp = stamp = timeStamp or TimeStamp.now()
+        if timeStamp is None:
+            self.timeStamp, stamp_dict = TimeStamp.now_and_dict()
+        else:
+            self.timeStamp = timeStamp
+            stamp_dict = timeStamp.to_dict()
         name = self.name
-        changes: list[Change] = [[[name, "value"], self.value_dict()]]
+        # a scalar is its own plain data (value_dict's answer, without a call)
+        plain_value = value if type(value) in _PLAIN else self.value_dict()
+        changes: list[Change] = [[[name, "value"], plain_value]]
         if alarm is not None and alarm != self.alarm:
             self.alarm = alarm
             changes.append([[name, "alarm"], alarm.to_dict()])
-        changes.append([[name, "timeStamp"], stamp.to_dict()])
+        changes.append([[name, "timeStamp"], stamp_dict])
         if block is not None:
             block.notify(changes)
 

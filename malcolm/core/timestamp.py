@@ -31,8 +31,8 @@ class TimeStamp:
 
     @classmethod
     def now_and_dict(cls) -> tuple[TimeStamp, dict[str, Any]]:
-        """``now()`` and its ``to_dict()``, made in one call (a method's
-        took and returned take one each)."""
+        """``now()`` and its ``to_dict()``, made in one call (every change
+        of an attribute takes one, a method's took and returned one each)."""
         seconds, nanoseconds = divmod(time.time_ns(), 1_000_000_000)
         stamp = object.__new__(cls)
         stamp.__dict__.update(

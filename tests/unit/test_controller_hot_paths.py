@@ -213,3 +213,24 @@ def test_the_logs_delivered_are_the_logs_kept_and_not_shared():
         }
 
     asyncio.run(main())
+
+
+def test_a_change_delivers_the_value_and_stamp_the_attribute_keeps():
+    async def main() -> None:
+        part = Slow("p")
+        c = await _controller(part)
+        seen: list[Any] = []
+        c.process.subscribe(["T", "slow"], seen.append)
+        part.slow.set_value(5)
+        value, stamp = seen[-1]
+        assert value == [["value"], 5]
+        assert stamp == [["timeStamp"], part.slow.timeStamp.to_dict()]
+        assert part.slow.timeStamp.secondsPastEpoch > 0
+        part.slow.set_value(6, timeStamp=TimeStamp(7, 8))
+        assert seen[-1][-1] == [["timeStamp"], TimeStamp(7, 8).to_dict()]
+        assert part.slow.timeStamp == TimeStamp(7, 8)
+        part.slow.set_value(9, alarm=Alarm.minor("low"))
+        assert [c[0] for c in seen[-1]] == [["value"], ["alarm"], ["timeStamp"]]
+        assert c.process.get(["T", "slow"])["timeStamp"] == seen[-1][-1][1]
+
+    asyncio.run(main())
