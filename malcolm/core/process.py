@@ -405,6 +405,15 @@ class Process:
                             touching = _below(sub.rest, changes) if other else changes
                             queue.append((sub, touching, below))
                         continue
+                elif not sub.rest:
+                    # the whole block's (_below in line): every change, as it
+                    # is, unless one replaces the block
+                    for change in changes:
+                        if not change[0]:
+                            break
+                    else:
+                        queue.append((sub, changes, below))
+                        continue
                 else:
                     touching = _below(sub.rest, changes)
                     if touching is not None:
@@ -415,8 +424,20 @@ class Process:
             if relative:
                 payload = relative if sub.delta else self._get_or_none(sub.path)[1]
                 queue.append((sub, payload, sub.callback))
-        if not self._delivering:  # else the outer _flush delivers these
-            self._flush()
+        if self._delivering:
+            return  # the outer _flush delivers these after what came before
+        # _flush, in line (once per change of every block with subscribers)
+        self._delivering = True
+        try:
+            while queue:
+                sub, payload, callback = queue.popleft()
+                if sub.active:
+                    try:
+                        callback(payload)
+                    except Exception:
+                        log.exception("subscriber %r raised", sub)
+        finally:
+            self._delivering = False
 
     def _flush(self) -> None:
         if self._delivering:
