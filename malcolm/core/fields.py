@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from threading import get_ident
 from typing import TYPE_CHECKING, Any
 
 from .alarm import Alarm
@@ -101,7 +102,7 @@ class Attribute(Field):
         # runs for every change of every attribute
         block = self.block
         owner = block.owner if block is not None else None
-        if owner is not None and not owner.here():
+        if owner is not None and owner.thread != get_ident():  # here(), in line
             if self._off_loop(self.set_value, value, alarm, timeStamp, validate):
                 return
         if validate:
@@ -280,7 +281,7 @@ class Method(Field):
         # once per call of every method
         block = self.block
         owner = block.owner if block is not None else None
-        if owner is not None and not owner.here():
+        if owner is not None and owner.thread != get_ident():  # here(), in line
             if self._off_loop(self.set_took, args):
                 return
         self.took, data = _new_log(dict(args), Alarm.ok)
@@ -290,7 +291,7 @@ class Method(Field):
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
         block = self.block
         owner = block.owner if block is not None else None
-        if owner is not None and not owner.here():
+        if owner is not None and owner.thread != get_ident():  # here(), in line
             if self._off_loop(self.set_returned, value, alarm):
                 return
         self.returned, data = _new_log(dict(value) if value else {}, alarm)

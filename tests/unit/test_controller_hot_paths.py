@@ -18,11 +18,14 @@ from malcolm.core import (
     MapMeta,
     NotAllowedError,
     NumberMeta,
+    OffLoopError,
     Process,
     StringMeta,
     TimeStamp,
 )
 from malcolm.core.fields import MethodLog
+from malcolm.core.threads import guard_trips
+from malcolm.embed import start_process
 from malcolm.hooks.origin import writing_as
 from malcolm.parts import Part
 
@@ -234,3 +237,22 @@ def test_a_change_delivers_the_value_and_stamp_the_attribute_keeps():
         assert c.process.get(["T", "slow"])["timeStamp"] == seen[-1][-1][1]
 
     asyncio.run(main())
+
+
+def test_the_loop_guard_still_refuses_logs_and_values_from_another_thread():
+    process = Process("guarded")
+    process.add_controller(Controller("T", [Slow("p")]))
+    tp = start_process(process, timeout=10)
+    try:
+        block = process.get_block("T")
+        with pytest.raises(OffLoopError, match=r"T\.greet"):
+            block.greet.set_took({"name": "x"})
+        with pytest.raises(OffLoopError, match=r"T\.greet"):
+            block.greet.set_returned({"greeting": "x"}, Alarm.ok)
+        with pytest.raises(OffLoopError, match=r"T\.slow"):
+            block.slow.set_value(3)
+        assert block.greet.took.value == {} and block.greet.returned.value == {}
+        assert block.slow.value == 0
+    finally:
+        guard_trips.clear()  # tripped on purpose
+        tp.stop(timeout=10)
