@@ -78,6 +78,10 @@ class NumberArrayMeta(ArrayMeta):
         super().__init__(description, tags, writeable, label)
         self.dtype = dtype
         self.element = NumberMeta(dtype, display=display)
+        #: the last NumberArray this meta made: the same numbers again (a
+        #: put's readback, the monitor's echo of it) give it again, not a
+        #: new tuple (20,001 points: 15 us to compare, 0.3 ms to make)
+        self._last: NumberArray | None = None
 
     @property
     def display(self) -> dict[str, Any]:
@@ -133,7 +137,16 @@ class NumberArrayMeta(ArrayMeta):
             return given  # the same numbers: kept, not made again
         if len(out) < KEEP_ARRAYS_FROM:
             return tuple(out.tolist())
-        return _frozen(np, out, value)
+        last = self._last
+        if (
+            last is not None
+            and len(last.array) == len(out)
+            and last.array.dtype == out.dtype
+            and np.array_equal(last.array, out)
+        ):
+            return last  # the numbers this meta gave last (a put's readback)
+        self._last = made = _frozen(np, out, value)
+        return made
 
     def _within(self, np: Any, values: Any) -> bool:
         lo = self.element.display.get("limitLow")

@@ -419,3 +419,21 @@ def test_a_kept_array_is_checked_again_against_another_meta():
     limited = NumberArrayMeta("float64", display={"limitLow": 0, "limitHigh": 10})
     with pytest.raises(BadValueError, match=r"\[0\]"):
         limited.validate(value)
+
+
+def test_the_same_numbers_again_give_the_same_value():
+    """A put's readback (the numbers just validated, read back as another
+    array) is the value made for the put, not a new one."""
+    meta = NumberArrayMeta("float64")
+    sent = np.linspace(0.0, 1.0, 5000)
+    value = meta.validate(sent)
+    echo = meta.validate(sent.copy())  # another array, the same numbers
+    assert echo is value
+    ints = meta.validate(np.arange(5000))  # other numbers: a value of their own
+    assert ints is not value and ints == tuple(float(i) for i in range(5000))
+    moved = sent.copy()
+    moved[-1] = 2.0
+    assert meta.validate(moved) is not ints and meta.validate(moved)[-1] == 2.0
+    # a NaN is never the same number: made again, as a NaN
+    nan = np.full(5000, np.nan)
+    assert math.isnan(meta.validate(nan)[0]) and math.isnan(meta.validate(nan)[0])
