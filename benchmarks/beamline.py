@@ -29,7 +29,11 @@ its own:
   sustained per-point work, against the demo's same spiral).
 
 Beside each, the slowest device manager's figure alone (configured and run
-without the BeamlineManager), so the co-ordination layer's own share shows.
+without the BeamlineManager), and the three device managers configured at
+once without it, alternated with the 3 layers' configure of the same scan
+(the reference column): they share this process's loop (and two cores
+with the simulations), so their work adds up; the 3 layers minus that
+figure is the co-ordination layer's own share.
 """
 
 from __future__ import annotations
@@ -193,6 +197,54 @@ async def measure_layers(
     return out
 
 
+async def configure_devices_time(
+    process: Any, generator: dict[str, Any], **args: Any
+) -> float:
+    """Seconds the three device managers take configured at once, without
+    the BeamlineManager (each its own raw file, as the beamline names them);
+    they are reset after."""
+    scan = args.pop("formatName", "bench")
+
+    async def configure(mri: str) -> None:
+        name = f"{scan}-{mri.rsplit(':', 1)[-1].lower()}"
+        await process.post(
+            [mri, "configure"],
+            {"generator": generator, "axesToMove": ["x", "y"], **args,
+             "formatName": name},
+        )  # fmt: skip
+
+    start = time.perf_counter()
+    await asyncio.gather(*(configure(mri) for mri in DEVICES))
+    took = time.perf_counter() - start
+    await asyncio.gather(*(process.post([mri, "reset"]) for mri in DEVICES))
+    log(f"the three devices at once: configure {took * 1e3:.3g} ms")
+    return took
+
+
+async def measure_devices_at_once(
+    process: Any, repeats: int, **args: Any
+) -> dict[str, float]:
+    """Configure times of the grid and the spiral, the three devices at once
+    (what the beamline's Configure phase does, without the beamline), each
+    alternated with the beamline's configure of the same scan, so that both
+    see the machine's load of the moment: ``<shape>`` the devices',
+    ``<shape>_beamline`` the beamline's beside them."""
+    shapes = {
+        "grid": lambda i: grid(10, 10, 0.2 + i * 1e-6),
+        "spiral": lambda i: spiral(10_000, 0.2 + i * 1e-6),
+    }
+    await configure_devices_time(process, grid(10, 10, 0.5), **args)
+    out: dict[str, float] = {}
+    for shape, make in shapes.items():
+        devices, beamline = [], []
+        for i in range(repeats):
+            devices.append(await configure_devices_time(process, make(i), **args))
+            beamline.append(await configure_time(process, SCAN, make(i), **args))
+        out[shape] = median(devices)
+        out[f"{shape}_beamline"] = median(beamline)
+    return out
+
+
 async def smallest_exposure(process: Any, mri: str, want: float) -> float:
     """The exposure the hierarchy's validate gives back for ``want`` (a scan
     of one point: no motor speed to refuse at any duration)."""
@@ -263,6 +315,9 @@ async def beamline_figures(points: int, repeats: int, want: float) -> dict[str, 
                 )
                 for mri in DEVICES
             }
+            figures["at_once"] = await measure_devices_at_once(
+                process, repeats, fileDir=file_dir
+            )
         figures["exposure"] = exposure
         return figures
 
@@ -307,6 +362,20 @@ def rows(three: dict[str, Any], one: dict[str, Any]) -> list[Row]:
                 "-",
                 "-",
                 f"the co-ordination layer adds {(three[key] - alone) * ms:.3g} ms",
+            )
+        )
+    at_once = three["at_once"]
+    for key, case in (("grid", "10x10 grid"), ("spiral", "10,000-point spiral")):
+        beside = at_once[f"{key}_beamline"]
+        out.append(
+            Row(
+                f"  {case}: the 3 devices at once, no beamline",
+                at_once[key] * ms,
+                "ms",
+                "-",
+                f"{beside * ms:.3g} ms",
+                "the co-ordination layer's own share"
+                f" {(beside - at_once[key]) * ms:.3g} ms (3 layers alternated)",
             )
         )
     added = three["overhead"] - one["overhead"]

@@ -26,6 +26,11 @@ from .metas import (
     _describe,
 )
 
+#: a number array given as numpy with at least this many elements keeps its
+#: array (:class:`NumberArray`); a shorter one is a tuple alone, which is
+#: quicker to make (a 100-element one: 3.3 us where keeping it took 12 us)
+KEEP_ARRAYS_FROM = 1000
+
 
 class ArrayMeta(Meta):
     """Base for array metas: values are tuples of the element type."""
@@ -73,20 +78,29 @@ class NumberArrayMeta(ArrayMeta):
         super().__init__(description, tags, writeable, label)
         self.dtype = dtype
         self.element = NumberMeta(dtype, display=display)
+        #: the last NumberArray this meta made: the same numbers again (a
+        #: put's readback, the monitor's echo of it) give it again, not a
+        #: new tuple (20,001 points: 15 us to compare, 0.3 ms to make)
+        self._last: NumberArray | None = None
 
     @property
     def display(self) -> dict[str, Any]:
         return self.element.display
 
     def validate(self, value: Any) -> tuple[Any, ...]:
+        """A tuple of the numbers; a 1-d numeric numpy array (what a channel
+        reads, what a part computes) gives a :class:`NumberArray` of them."""
         fast = self._validate_numpy(value)
         return fast if fast is not None else super().validate(value)
 
     def _validate_numpy(self, value: Any) -> tuple[Any, ...] | None:
-        """A 1-d numeric numpy array checked whole (a trajectory's 20,000
-        points in a millisecond rather than a second); None where it is not
-        one, or where an element is refused: the element-wise check then
-        gives the error, naming the element."""
+        """A 1-d numeric numpy array (or a :class:`NumberArray`) checked
+        whole (a trajectory's 20,000 points in a millisecond rather than a
+        second); None where it is not one, or where an element is refused:
+        the element-wise check then gives the error, naming the element."""
+        given = value
+        if type(value) is NumberArray:
+            value = value.array  # checked again, against this meta
         np = sys.modules.get("numpy")
         if (
             np is None
@@ -115,11 +129,24 @@ class NumberArrayMeta(ArrayMeta):
                 return tuple(out) if self._within(np, value) else None
             if int(value.min()) < lo or int(value.max()) > hi:
                 return None
-            out = value
+            out = value.astype(dtype, copy=False)
             checked = value
         if not self._within(np, checked):
             return None
-        return tuple(out.tolist())
+        if type(given) is NumberArray and out.dtype == value.dtype:
+            return given  # the same numbers: kept, not made again
+        if len(out) < KEEP_ARRAYS_FROM:
+            return tuple(out.tolist())
+        last = self._last
+        if (
+            last is not None
+            and len(last.array) == len(out)
+            and last.array.dtype == out.dtype
+            and np.array_equal(last.array, out)
+        ):
+            return last  # the numbers this meta gave last (a put's readback)
+        self._last = made = _frozen(np, out, value)
+        return made
 
     def _within(self, np: Any, values: Any) -> bool:
         lo = self.element.display.get("limitLow")
@@ -133,6 +160,50 @@ class NumberArrayMeta(ArrayMeta):
         d["dtype"] = self.dtype
         d["display"] = self.element.to_dict()["display"]
         return d
+
+
+def _frozen(np: Any, out: Any, given: Any) -> NumberArray:
+    """``out`` (checked) as the attribute keeps it, with a read-only numpy
+    array of its own beside it (a copy where ``out`` is the array it was
+    given), so that neither can change behind the block's back."""
+    if out is given or out.base is given:
+        out = out.copy()
+    out.flags.writeable = False
+    return NumberArray(out)
+
+
+class NumberArray(tuple):  # type: ignore[type-arg]
+    """A number array's value given as a numpy array: the tuple of its
+    Python numbers that a number array's value is (made once, by one
+    ``tolist``), keeping the numpy array (read-only) beside it.
+
+    :func:`~malcolm.core.metas.plain` copies it to a list without checking
+    each element's type, and ``numpy.asarray`` gives the kept array with no
+    conversion. A copy, a pickle, a slice or a sum is a plain tuple. (For
+    a 20,000-point trajectory: validate 0.55 -> 0.3 ms, plain 0.38 ->
+    0.03 ms, ``numpy.asarray`` 0.45 ms -> 1 us.)"""
+
+    array: Any
+
+    def __new__(cls, array: Any) -> NumberArray:
+        self = super().__new__(cls, array.tolist())
+        #: the numbers as numpy holds them (read-only)
+        self.array = array
+        return self
+
+    def __array__(self, dtype: Any = None, copy: Any = None) -> Any:
+        if dtype is not None and dtype != self.array.dtype:
+            return self.array.astype(dtype)
+        return self.array.copy() if copy else self.array
+
+    def __reduce__(self) -> Any:
+        return (tuple, (tuple(self),))
+
+    def __copy__(self) -> NumberArray:
+        return self  # immutable, as a tuple
+
+    def __deepcopy__(self, memo: Any) -> NumberArray:
+        return self
 
 
 class StringArrayMeta(ArrayMeta):

@@ -408,6 +408,8 @@ def _plain(value: Any) -> Any:
         return value
     if kind is dict:
         return {k: _plain(v) for k, v in value.items()}
+    if kind is NumberArray:
+        return list(value)  # Python numbers all: no check of each one's type
     if isinstance(value, tuple | list):
         if len(value) > 16 and _SCALARS.issuperset(map(type, value)):
             return list(value)  # e.g. a GDA array of positions: no call per item
@@ -427,6 +429,7 @@ plain = _plain
 from .arrays import ArrayMeta as ArrayMeta  # noqa: E402
 from .arrays import BooleanArrayMeta as BooleanArrayMeta  # noqa: E402
 from .arrays import ChoiceArrayMeta as ChoiceArrayMeta  # noqa: E402
+from .arrays import NumberArray as NumberArray  # noqa: E402
 from .arrays import NumberArrayMeta as NumberArrayMeta  # noqa: E402
 from .arrays import StringArrayMeta as StringArrayMeta  # noqa: E402
 from .arrays import TableMeta as TableMeta  # noqa: E402

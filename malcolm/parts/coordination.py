@@ -22,6 +22,11 @@ that also:
   ``completedSteps``) the others wait until the motion's pause has ended
   (its controller no longer produces triggers) before they stop and re-arm,
   so no trigger of the motion's deceleration is taken as a re-done point;
+- validates in the same order: in each round of the beamline's Validate a
+  child checks the scan once its siblings of a lower ``order`` have, with
+  their changes (the motion checks its speeds at the duration the detector
+  raised to its shortest frame, so the result does not depend on which
+  child answers first);
 - ends the scan in Fault when its child faults, with ``health`` saying
   ``<part>: <the child's health>``; when the beamline faults, the children
   still in the middle of the scan are aborted (the motion stops).
@@ -39,7 +44,9 @@ import asyncio
 import contextlib
 import logging
 import re
+import weakref
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 from malcolm.core import (
@@ -106,6 +113,14 @@ class DeviceChildPart(RunnableChildPart):
         self._seeks_begun = 0
         self._seeks_ended = 0
         self._seek_ended = asyncio.Event()
+        #: per device being validated, this part's validate of each round:
+        #: the changes it returned (None if it failed), and the rounds begun
+        self._validations: weakref.WeakKeyDictionary[
+            Any, list[asyncio.Future[dict[str, Any] | None]]
+        ] = weakref.WeakKeyDictionary()
+        self._validates_begun: weakref.WeakKeyDictionary[Any, int] = (
+            weakref.WeakKeyDictionary()
+        )
 
     @property
     def input(self) -> str:
@@ -155,8 +170,47 @@ class DeviceChildPart(RunnableChildPart):
 
     @RunnableDevice.Validate
     async def validate(self, task: Task, device: Any) -> dict[str, Any]:
-        tweaks = await super().validate(task, device)
-        return {k: v for k, v in tweaks.items() if k in SCAN_PARAMS}
+        """The child checks the scan once every sibling of a lower ``order``
+        has checked it in this round, with their changes: the motion checks
+        its speeds at the duration the detector raised, not at the one
+        asked for (a refusal of a duration nobody keeps). Returns the
+        changes to the scan's arguments (the siblings return their own)."""
+        index = self._validates_begun.get(device, 0)
+        self._validates_begun[device] = index + 1
+        mine = self.validation(device, index)
+        try:
+            earlier: dict[str, Any] = {}
+            inactive = getattr(self._controller, "inactive", ())
+            for part in sorted(self.siblings(), key=lambda p: p.order):
+                if part.order < self.order and part.name not in inactive:
+                    tweaks = await part.validation(device, index)
+                    if tweaks is None:
+                        mine.set_result(None)
+                        return {}  # a sibling refused: the phase fails anyway
+                    earlier.update(tweaks)
+            checked = device
+            if earlier:
+                params = {**device.params, **earlier}
+                checked = SimpleNamespace(params=params, mri=device.mri)
+            tweaks = await super().validate(task, checked)
+            tweaks = {k: v for k, v in tweaks.items() if k in SCAN_PARAMS}
+            if earlier:  # the scan as this child left it, the siblings' changes in
+                tweaks = {**earlier, **tweaks}
+        except BaseException:
+            if not mine.done():
+                mine.set_result(None)
+            raise
+        mine.set_result(tweaks)
+        return tweaks
+
+    def validation(self, device: Any, index: int) -> asyncio.Future[Any]:
+        """This part's ``index``-th validate of ``device``: its result is
+        the changes it returned, None if it failed (made here if the part
+        has not begun it yet)."""
+        rounds = self._validations.setdefault(device, [])
+        while len(rounds) <= index:
+            rounds.append(asyncio.get_running_loop().create_future())
+        return rounds[index]
 
     @RunnableDevice.Configure
     async def configure(self, task: Task, device: Any) -> None:

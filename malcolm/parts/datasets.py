@@ -11,13 +11,20 @@ path of a 1-d int dataset giving each row's point: point index + 1).
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Iterable, Mapping
 from typing import Any
 
 from malcolm.core import BadValueError, NumberArrayMeta, StringArrayMeta, TableMeta
 
-__all__ = ["DATASET_TYPES", "check_file_args", "dataset_rows", "datasets_meta"]
+__all__ = [
+    "DATASET_TYPES",
+    "check_file_args",
+    "dataset_rows",
+    "datasets_meta",
+    "new_h5_file",
+]
 
 #: the values of the ``type`` column
 DATASET_TYPES = ("primary", "secondary", "monitor", "position_set", "position_value")
@@ -76,3 +83,17 @@ def check_file_args(mri: str, file_dir: str, name: str) -> None:
             f"{mri}.configure.fileDir: cannot write {file_dir!r} ({where!r} is"
             " not a writeable directory)"
         )
+
+
+def new_h5_file(path: str | os.PathLike[str], **kwargs: Any) -> Any:
+    """A new, empty HDF5 file open for writing at ``path`` (its directory
+    made if missing), replacing a file there: the old one is removed first,
+    since HDF5 truncating an existing file took ~3 ms a file where removing
+    it and making a new one takes 0.3 ms (a reader that has the old one open
+    keeps reading it). Blocking: call it in a worker thread."""
+    import h5py  # loaded with the first file, not at start-up
+
+    os.makedirs(os.path.dirname(os.fspath(path)) or ".", exist_ok=True)
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(path)
+    return h5py.File(path, "w", **kwargs)

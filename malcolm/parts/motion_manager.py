@@ -89,6 +89,9 @@ class MotionTrajectoryPart(Part):
         self._executed: tuple[Profile, dict[str, float]] | None = None
         #: (scan content, axes, limits) of the last scan validate passed
         self._checked_ok: Any = None
+        #: the last chunk the check of a scan computed, by the scan's content,
+        #: its steps and axes: the profile of the scan's run takes it again
+        self._checked_chunk: tuple[Any, Any] | None = None
         #: trajectory field -> (its time stamp, the array it holds), for the
         #: arrays sent (or found there) last
         self._sent: dict[str, tuple[float, Any]] = {}
@@ -251,6 +254,9 @@ class MotionTrajectoryPart(Part):
         from .motion_profile import too_fast
 
         for chunk in points.chunks(CHECK_CHUNK, axes=moved):
+            if points.content is not None:
+                key = (points.content, chunk.start, chunk.stop, tuple(moved))
+                self._checked_chunk = (key, chunk)
             for axis in moved:
                 vmax, low, high = limits[axis]
                 lower, upper = chunk.lower[axis], chunk.upper[axis]
@@ -269,6 +275,16 @@ class MotionTrajectoryPart(Part):
                         f"{self._where(axis)}: the scan goes from {least:.6g} to"
                         f" {most:.6g}, outside its limits [{low:.6g}, {high:.6g}]"
                     )
+
+    def _chunk(self, points: Any, start: int, stop: int, moved: list[str]) -> Any:
+        """The points of steps ``start .. stop-1``: the chunk the scan's
+        check computed, if it was these (a 10,000-point spiral's: 2.8 ms)."""
+        kept = self._checked_chunk
+        if kept is not None and points.content is not None:
+            key, chunk = kept
+            if key == (points.content, start, stop, tuple(moved)):
+                return chunk
+        return points.chunk(start, stop, moved)
 
     # ---- configure and prepare a run
     @RunnableDevice.Configure
@@ -316,7 +332,7 @@ class MotionTrajectoryPart(Part):
         velocity = {a: float(self._value(self.axes[a][1], "velocity")) for a in moved}
 
         def compute() -> Profile:
-            chunk = points.chunk(start, stop, moved)
+            chunk = self._chunk(points, start, stop, moved)
             return build_profile(
                 start,
                 chunk.lower,

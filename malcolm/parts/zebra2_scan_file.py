@@ -22,6 +22,7 @@ import numpy as np
 
 from malcolm.io.zebra2.hdf import CHUNK_ROWS, CaptureFile
 
+from .datasets import new_h5_file
 from .zebra2_scan_datasets import COLUMNS, POSITION, UNIQUEID
 
 __all__ = ["ScanFile", "create_scan_file", "uniqueids"]
@@ -36,9 +37,7 @@ def _dataset(f: h5py.File, name: str, dtype: Any) -> h5py.Dataset:
 def create_scan_file(path: str | Path, meta: dict[str, Any]) -> None:
     """An empty scan file at ``path`` (replacing one there), attributes
     ``meta``, ready for :class:`ScanFile` to append to."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with h5py.File(path, "w", libver="latest") as f:
+    with new_h5_file(path, libver="latest") as f:
         for k, v in meta.items():
             f.attrs[k] = v
         for column in COLUMNS:

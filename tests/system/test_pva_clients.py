@@ -16,6 +16,8 @@ from p4p.client.thread import RemoteError
 
 from malcolm.io.pva.convert import to_dict
 
+from .p4p_monitor import monitor
+
 # ---- §2's structure of the demo's HELLO block, written down as data
 CODES = {
     "s": "string",
@@ -238,7 +240,7 @@ def test_p4p_error_text(ctx):
 
 def test_p4p_monitor_whole_then_what_changed(ctx, demo):
     updates: queue.Queue[Value] = queue.Queue()
-    sub = ctx.monitor("COUNTER", updates.put)
+    sub = monitor(ctx, "COUNTER", updates.put)
     try:
         first = updates.get(timeout=5)
         assert "counter.meta.description" in first.changedSet()

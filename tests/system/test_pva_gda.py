@@ -16,6 +16,8 @@ from p4p.client.thread import RemoteError
 
 from malcolm.io.pva.convert import to_dict
 
+from .p4p_monitor import monitor
+
 SPG = "scanpointgenerator:generator"
 LINE = Type(
     [
@@ -115,8 +117,8 @@ def test_gda_sequence(ctx):
     states: queue.Queue[str] = queue.Queue()
     steps: queue.Queue[int] = queue.Queue()
     subs = [
-        ctx.monitor("SCAN.state", lambda v: states.put(v["value"])),
-        ctx.monitor("SCAN.completedSteps", lambda v: steps.put(v["value"])),
+        monitor(ctx, "SCAN.state", lambda v: states.put(v["value"])),
+        monitor(ctx, "SCAN.completedSteps", lambda v: steps.put(v["value"])),
     ]
     seen_states: list[str] = []
     seen_steps: list[int] = []

@@ -5,7 +5,7 @@ starting finds its blocks.
 
 The clients subscribe through :func:`monitor`, not p4p's
 ``Context.monitor``, whose start-up race lost a subscription's first value
-for ever now and then under load (see :class:`StartedSubscription`): that,
+for ever now and then under load (see tests/system/p4p_monitor.py): that,
 not the server, was this test's "not seen in time"."""
 
 from __future__ import annotations
@@ -18,14 +18,13 @@ from typing import Any
 
 import pytest
 from p4p import Type, Value
-from p4p.client import raw
-from p4p.client.thread import Context, Subscription
 
 from malcolm.demo import demo_generator
 from malcolm.io.pva.convert import to_value
 from malcolm.io.pva.server import RELEASE_DELAY
 
 from .conftest import Served, launch, wait_ready
+from .p4p_monitor import monitor
 
 CLIENTS = 50
 RUNS = 3
@@ -45,47 +44,6 @@ def call(ctx: Any, method: str, args: dict[str, Any] | None = None) -> Any:
     return ctx.rpc(f"SCAN.{method}", value, timeout=60)
 
 
-class StartedSubscription(Subscription):
-    """p4p's thread Subscription, without the race of ``Context.monitor``.
-
-    ``Context.monitor`` (p4p 4.3) makes the raw subscription, then stores it
-    in ``_S``; its first wake-up can come, from a pvxs thread, before it is
-    stored, and ``Subscription._event`` then fails its ``assert self._S is
-    not None``, logs "Lost Subscription update" and drops the wake-up. pvxs
-    wakes a subscription only when its queue goes from empty to not empty,
-    and nothing empties it: the monitor never gives a value (a client held 6
-    of its 7 blocks for 120 s while a new client got the 7th at once, each
-    time after that log line). Here a wake-up that comes before the raw
-    subscription is stored is kept, and given once it is.
-    """
-
-    def __init__(self, ctx: Context, name: str, cb: Any) -> None:
-        self._lock = threading.Lock()
-        self._early = False
-        super().__init__(ctx, name, cb, notify_disconnect=True)
-
-    def _event(self) -> None:
-        with self._lock:
-            if self._S is None:
-                self._early = True
-                return
-        super()._event()
-
-    def started(self, sub: Any) -> None:
-        with self._lock:
-            self._S = sub
-            early = self._early
-        if early:
-            super()._event()
-
-
-def monitor(ctx: Context, name: str, cb: Any) -> Subscription:
-    """``ctx.monitor(name, cb, notify_disconnect=True)``, free of its race."""
-    sub = StartedSubscription(ctx, name, cb)
-    sub.started(raw.Context.monitor(ctx, name, sub._event))
-    return sub
-
-
 class Watcher:
     """One client: a monitor of every block, keeping the last of each."""
 
@@ -94,7 +52,10 @@ class Watcher:
         self.last: dict[str, Any] = {}
         self.lock = threading.Lock()
         self.events: list[tuple[str, str]] = []
-        self.subs = [monitor(self.ctx, mri, self._keep(mri)) for mri in MRIS]
+        self.subs = [
+            monitor(self.ctx, mri, self._keep(mri), notify_disconnect=True)
+            for mri in MRIS
+        ]
 
     def _keep(self, mri: str):
         def keep(value: Any) -> None:

@@ -15,6 +15,7 @@ import pytest
 
 from malcolm.io.pva.ops import OpRunner, start_op
 
+from .p4p_monitor import monitor
 from .test_pva_runtime import served  # noqa: F401 (a fixture)
 
 VAR: contextvars.ContextVar[str] = contextvars.ContextVar("VAR", default="unset")
@@ -312,7 +313,7 @@ def test_each_update_carries_only_its_own_change(served):  # noqa: F811
 
     tp, process, server, ctx = served
     updates: queue.Queue[Any] = queue.Queue()
-    sub = ctx.monitor("FIRST", updates.put, request="record[queueSize=10]")
+    sub = monitor(ctx, "FIRST", updates.put, request="record[queueSize=10]")
     try:
         updates.get(timeout=10)  # the whole block
         block = process.get_block("FIRST")
@@ -337,7 +338,7 @@ def test_changes_the_fast_path_recorded_are_in_the_channels_data(served):  # noq
     from malcolm.core import Attribute, NumberMeta
 
     tp, process, server, ctx = served
-    sub = ctx.monitor("FIRST", lambda _value: None)
+    sub = monitor(ctx, "FIRST", lambda _value: None)
     try:
         ctx.get("FIRST", timeout=5)
         block = process.get_block("FIRST")
@@ -380,7 +381,7 @@ def test_an_update_leaves_out_leaves_set_to_what_they_hold(served):  # noqa: F81
 
     tp, process, server, ctx = served
     updates: queue.Queue[Any] = queue.Queue()
-    sub = ctx.monitor("FIRST.counter", updates.put, request="record[queueSize=10]")
+    sub = monitor(ctx, "FIRST.counter", updates.put, request="record[queueSize=10]")
     try:
         updates.get(timeout=10)  # the whole field
         block = process.get_block("FIRST")
@@ -465,7 +466,7 @@ def test_a_client_that_has_its_answer_gets_the_new_took_and_returned(served):  #
         process.get, ["FIRST", "zero", "returned", "timeStamp"]
     ).result(5)
     first: queue.Queue[Any] = queue.Queue()
-    sub = ctx.monitor("FIRST.zero", first.put)  # opened after the answer
+    sub = monitor(ctx, "FIRST.zero", first.put)  # opened after the answer
     try:
         got = first.get(timeout=5)
         assert got["returned.timeStamp.nanoseconds"] == stamp["nanoseconds"]

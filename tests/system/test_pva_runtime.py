@@ -17,6 +17,7 @@ from malcolm.io.pva import start_pva_server
 from malcolm.parts.demo import CounterPart
 
 from .conftest import client_conf, free_port
+from .p4p_monitor import monitor
 
 
 @pytest.fixture
@@ -81,7 +82,7 @@ def test_a_block_removed_at_run_time_disappears(served):
     tp, process, server, ctx = served
     add_block(process, "GOING")
     updates: queue.Queue[object] = queue.Queue()
-    sub = ctx.monitor("GOING.counter", updates.put, notify_disconnect=True)
+    sub = monitor(ctx, "GOING.counter", updates.put, notify_disconnect=True)
     try:
         assert next_value(updates)["value"] == 0.0
         remove_block(process, "GOING")
@@ -100,7 +101,7 @@ def test_a_field_added_at_run_time_reshapes_the_block_channel(served):
     from malcolm.core import Attribute, NumberMeta
 
     updates: queue.Queue[object] = queue.Queue()
-    sub = ctx.monitor("FIRST", updates.put, notify_disconnect=True)
+    sub = monitor(ctx, "FIRST", updates.put, notify_disconnect=True)
     try:
         assert "extra" not in next_value(updates).keys()
         block = process.get_block("FIRST")
@@ -137,7 +138,7 @@ def test_the_block_list_follows_blocks_added_and_removed(served):
     tp, process, server, ctx = served
     process.call_threadsafe(add_block_list, process).result(10)
     updates: queue.Queue[object] = queue.Queue()
-    sub = ctx.monitor("localhost.blocks", updates.put, notify_disconnect=True)
+    sub = monitor(ctx, "localhost.blocks", updates.put, notify_disconnect=True)
     try:
         assert list(next_value(updates)["value"]) == ["FIRST"]
         add_block(process, "LATER")
@@ -181,7 +182,7 @@ def test_a_released_channel_reuses_its_pv_and_serves_current_values(
     for round_ in range(3):
         other = Context("pva", conf=conf, useenv=False, nt=False)
         updates: queue.Queue[object] = queue.Queue()
-        sub = other.monitor("FIRST.counter", updates.put, notify_disconnect=True)
+        sub = monitor(other, "FIRST.counter", updates.put, notify_disconnect=True)
         assert next_value(updates)["value"] == float(round_)
         process.call_threadsafe(
             process.get_block("FIRST").counter.set_value, float(round_ + 1)

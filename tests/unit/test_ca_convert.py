@@ -77,3 +77,25 @@ def test_arrays_and_text_waveforms_are_marshalled_whole():
     assert n == 1 and list(data) == [0.0]
     with pytest.raises(ValueError, match="not whole"):
         _marshal(np.array([1.0, np.nan]), dbr.LONG, 5)
+
+
+@pytest.mark.parametrize(
+    "ftype", [dbr.SHORT, dbr.FLOAT, dbr.ENUM, dbr.CHAR, dbr.LONG, dbr.DOUBLE]
+)
+def test_a_python_number_is_marshalled_as_its_array_of_one_would_be(ftype):
+    # the scalar path (ctypes alone) against the numpy path of the same value
+    # given as a list: the same numbers, the same wrapping, the same refusals
+    for value in (
+        0, 1, -1, 255, 300, -300, 65536, 2**31, -(2**31) - 1, 2**40,
+        True, False, 0.0, -0.0, 1.0, 2.5, -3.0, 1e10, 255.0, 2.0**40, 3.4e38,
+    ):  # fmt: skip
+        with np.errstate(all="ignore"):  # numpy's casts out of range
+            try:
+                scalar = list(_marshal(value, ftype, 1)[0])
+            except ValueError as e:
+                scalar = [str(e)]
+            try:
+                array = list(_marshal([value], ftype, 1)[0])
+            except ValueError as e:
+                array = [str(e).replace(repr([value]), repr(value))]
+        assert scalar == array, (ftype, value)

@@ -16,7 +16,7 @@ import pytest
 
 from malcolm.config.build import build_block, expand, find_definition, load_definition
 from malcolm.controllers.runnable import RunnableController
-from malcolm.core import MalcolmError, NumberMeta, Process, StringMeta
+from malcolm.core import BadValueError, MalcolmError, NumberMeta, Process, StringMeta
 from malcolm.fsm import RunnableDevice
 from malcolm.hooks import Task
 from malcolm.parts import Part, PartRegistrar
@@ -295,5 +295,88 @@ def test_a_child_already_in_fault_is_reset_by_configure(tmp_path):
         assert p.get(["BL:DET", "state", "value"]) == "Armed"
         await p.post(["BL", "run"])
         assert p.get(["BL", "state", "value"]) == "Finished"
+
+    run(scenario)
+
+
+class ShortestPoint(Part):
+    """A detector's readout: a CompoundGenerator's duration under
+    ``shortest`` comes back raised to it."""
+
+    def __init__(self, shortest: float, delay: float) -> None:
+        super().__init__("readout")
+        self.shortest, self.delay = shortest, delay
+
+    @RunnableDevice.Validate
+    async def validate(self, task: Task, device: Any) -> dict[str, Any]:
+        await asyncio.sleep(self.delay)  # 0: answers before the motion does
+        generator = device.params["generator"]
+        if float(generator["duration"]) < self.shortest:
+            return {"generator": {**generator, "duration": self.shortest}}
+        return {}
+
+
+class SpeedLimit(Part):
+    """A motion's speed check: points shorter than ``shortest`` are
+    refused (the motors would be too fast)."""
+
+    def __init__(self, shortest: float) -> None:
+        super().__init__("speeds")
+        self.shortest = shortest
+        self.checked: list[float] = []
+
+    @RunnableDevice.Validate
+    async def validate(self, task: Task, device: Any) -> dict[str, Any]:
+        duration = float(device.params["generator"]["duration"])
+        self.checked.append(duration)
+        if duration < self.shortest:
+            raise BadValueError(f"{duration} s a point is too fast for the motors")
+        return {}
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.02])
+def test_the_motion_checks_the_duration_the_detector_raised(tmp_path, delay):
+    """The detector raises a scan's duration to its shortest frame; the
+    motion, which would refuse the duration asked for, checks the raised
+    one: validate and configure give the raised duration, whichever child
+    answers first."""
+
+    async def scenario():
+        process = Process()
+        speeds = SpeedLimit(0.01)
+        parts = {
+            "DET": [FakeDevicePart("det", "{fmt}.data", "primary", 2),
+                    ShortestPoint(0.01, delay)],
+            "MOTORS": [FakeDevicePart("motors", "x.value", "position_value"),
+                       speeds],
+            "ZEBRA": [FakeDevicePart("zebra", "panda.INENC1.VAL", "monitor")],
+        }  # fmt: skip
+        for mri, device_parts in parts.items():
+            process.add_controller(RunnableController(f"BL:{mri}", device_parts))
+        expanded = expand(
+            load_definition(find_definition("beamline.BeamlineManager")),
+            {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
+            mri="BL",
+        )
+        build_block(process, expanded)
+        await process.start()
+        gen = spiral()  # 1 ms a point
+        validated = await process.post(
+            ["BL", "validate"], {"generator": gen, "axesToMove": ["x", "y"]}
+        )
+        assert validated["generator"]["duration"] == 0.01
+        # the motion never refused: it checked the raised duration alone
+        assert speeds.checked and set(speeds.checked) == {0.01}
+        await process.post(["BL", "configure"], {"generator": gen})
+        assert process.get(["BL", "state", "value"]) == "Armed"
+        assert process.get(["BL:MOTORS", "state", "value"]) == "Armed"
+        # a duration the detector keeps but the motion refuses still fails,
+        # naming why
+        speeds.shortest = 0.05
+        with pytest.raises(MalcolmError, match="too fast for the motors"):
+            await process.post(
+                ["BL", "validate"], {"generator": gen, "axesToMove": ["x", "y"]}
+            )
+        await process.stop()
 
     run(scenario)

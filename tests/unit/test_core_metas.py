@@ -13,6 +13,7 @@ from malcolm.core import (
     ChoiceMeta,
     MapMeta,
     MethodMeta,
+    NumberArray,
     NumberArrayMeta,
     NumberMeta,
     StringArrayMeta,
@@ -373,3 +374,66 @@ def test_a_float64_takes_a_python_float_as_it_is():
             assert "limits" in str(e)
         else:
             raise AssertionError(f"{bad} passed the limits [0, 10]")
+
+
+def test_a_numpy_array_is_kept_beside_its_tuple():
+    """A number array given as numpy is the tuple of its numbers, with a
+    read-only copy of the array beside it: plain data and equality as a
+    tuple's, numpy.asarray without a conversion."""
+    given = np.linspace(0.0, 1.0, 20_001)
+    value = NumberArrayMeta("float64").validate(given)
+    assert isinstance(value, tuple) and type(value) is NumberArray
+    assert value == tuple(given.tolist())
+    out = plain(value)
+    assert type(out) is list and out == plain(tuple(given.tolist()))
+    assert all(type(v) is float for v in out)
+    kept = np.asarray(value)
+    assert kept is value.array and not kept.flags.writeable
+    given[0] = 99.0  # the caller's array is not the value's
+    assert value[0] == 0.0 and kept[0] == 0.0
+    with pytest.raises(ValueError):
+        kept[1] = 5.0
+    # copies, pickles and slices are plain tuples (or the value itself)
+    import copy
+    import pickle
+
+    assert copy.deepcopy(value) is value
+    assert type(pickle.loads(pickle.dumps(value))) is tuple
+    assert type(value[1:3]) is tuple and value[1:3] == tuple(given[1:3].tolist())
+    # an integer meta keeps its own dtype; Python ints in the tuple
+    ints = NumberArrayMeta("int32").validate(np.arange(2000, dtype=np.int64))
+    assert type(ints) is NumberArray and np.asarray(ints).dtype == np.int32
+    assert ints[:3] == (0, 1, 2) and all(type(v) is int for v in ints)
+    assert plain(ints) == list(range(2000))
+    # a short array is a tuple alone (quicker to make)
+    assert type(NumberArrayMeta().validate(np.arange(3.0))) is tuple
+
+
+def test_a_kept_array_is_checked_again_against_another_meta():
+    value = NumberArrayMeta("float64").validate(np.full(1000, 300.0))
+    assert type(value) is NumberArray
+    assert NumberArrayMeta("float64").validate(value) is value  # nothing to redo
+    with pytest.raises(BadValueError, match=r"\[0\]"):
+        NumberArrayMeta("int8").validate(value)
+    assert NumberArrayMeta("int16").validate(value) == (300,) * 1000
+    limited = NumberArrayMeta("float64", display={"limitLow": 0, "limitHigh": 10})
+    with pytest.raises(BadValueError, match=r"\[0\]"):
+        limited.validate(value)
+
+
+def test_the_same_numbers_again_give_the_same_value():
+    """A put's readback (the numbers just validated, read back as another
+    array) is the value made for the put, not a new one."""
+    meta = NumberArrayMeta("float64")
+    sent = np.linspace(0.0, 1.0, 5000)
+    value = meta.validate(sent)
+    echo = meta.validate(sent.copy())  # another array, the same numbers
+    assert echo is value
+    ints = meta.validate(np.arange(5000))  # other numbers: a value of their own
+    assert ints is not value and ints == tuple(float(i) for i in range(5000))
+    moved = sent.copy()
+    moved[-1] = 2.0
+    assert meta.validate(moved) is not ints and meta.validate(moved)[-1] == 2.0
+    # a NaN is never the same number: made again, as a NaN
+    nan = np.full(5000, np.nan)
+    assert math.isnan(meta.validate(nan)[0]) and math.isnan(meta.validate(nan)[0])

@@ -36,6 +36,8 @@ a load of positions).
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import os
 import xml.etree.ElementTree as ET
 from typing import Any
 
@@ -267,6 +269,11 @@ class HDFWriter(Stoppable):
 
         mode = "a" if self.append.get() else "w"
         try:
+            if mode == "w":
+                # a file there is removed, not truncated by HDF5 (~3 ms a
+                # file on the IOC's loop where this takes 0.3 ms)
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(self.filename)
             self.file = h5py.File(self.filename, mode)
         except OSError as e:
             self._fail(f"cannot open: {e.strerror or e}")

@@ -27,6 +27,7 @@ from p4p.client.thread import RemoteError
 from malcolm.io.pva.convert import to_dict
 from malcolm.scan import scan_points
 
+from ..p4p_monitor import monitor
 from .conftest import SCAN, Beamline, alive
 
 SPG = "scanpointgenerator:generator"
@@ -190,7 +191,7 @@ def run_with_pause(ctx: Any, generator: Value, axes: list[str], name: str) -> in
     total = ctx.get(f"{SCAN}.totalSteps", timeout=10)["value"]
     assert total == points_of(generator).size
     steps: queue.Queue[int] = queue.Queue()
-    sub = ctx.monitor(f"{SCAN}.completedSteps", lambda v: steps.put(v["value"]))
+    sub = monitor(ctx, f"{SCAN}.completedSteps", lambda v: steps.put(v["value"]))
     try:
         with ThreadPoolExecutor(1) as pool:
             running = pool.submit(call, ctx, "run")
