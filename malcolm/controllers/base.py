@@ -19,11 +19,13 @@ import asyncio
 import functools
 import logging
 from collections.abc import Callable, Mapping, Sequence
+from types import CoroutineType
 from typing import Any, ClassVar
 
 from malcolm.core import (
     Alarm,
     Attribute,
+    BadValueError,
     Block,
     ChoiceMeta,
     Method,
@@ -51,6 +53,9 @@ log = logging.getLogger(__name__)
 #: seconds a phase may take unless the model tags it ``long`` or the
 #: controller's ``phase_timeouts`` names it
 DEFAULT_PHASE_TIMEOUT = 60.0
+
+#: not yet looked up (None is a lookup's answer: no such method)
+_UNKNOWN: Any = object()
 
 
 @functools.cache
@@ -102,6 +107,8 @@ class Controller(Interpreter, Operations, Health):
         self.device = Device(self)
         self.state_listeners: list[Callable[[str, str], None]] = []
         self.puts_in_flight = PutsInFlight()
+        #: attribute name -> this controller's ``put_<name>`` (None: it has none)
+        self._put_methods: dict[str, Callable[[Any], Any] | None] = {}
         self._state = self.model.initial
         self._init_operations()
         self._init_health()
@@ -250,17 +257,25 @@ class Controller(Interpreter, Operations, Health):
         """Call method ``name``: arguments checked, then the model's rule."""
         method = self.block.method(name)
         args = method.meta.validate_args(f"{self.mri}.{name}", params or {})
-        self.check_allowed(name)
+        allowed = self.model.methods.get(name)  # check_allowed's test, in line
+        if allowed is not None and self._state not in allowed:
+            self.check_allowed(name)  # raises, naming the state
         method.set_took(args)
+        handler = method.handler
         try:
-            result = method.handler(**args) if method.handler else None
-            if asyncio.iscoroutine(result):
+            result = handler(**args) if handler else None
+            # an async def's coroutine, or nothing, told apart without a call
+            if type(result) is CoroutineType or (
+                result is not None and asyncio.iscoroutine(result)
+            ):
                 result = await result
         except Exception as e:
             method.set_returned({}, Alarm.major(describe(e)))
             raise
-        returned = result if isinstance(result, Mapping) else {}
-        method.set_returned(returned, Alarm.ok)
+        if type(result) is dict or isinstance(result, Mapping):
+            method.set_returned(result, Alarm.ok)
+        else:
+            method.set_returned({}, Alarm.ok)
         return result
 
     async def put(self, name: str, value: Any) -> None:
@@ -276,15 +291,26 @@ class Controller(Interpreter, Operations, Health):
             )
         if rule is None and not attr.meta.writeable:
             raise NotWriteableError(f"{self.mri}.{name} is read-only")
-        value = attr.validate(value)
-        handler = getattr(self, f"put_{name}", None) or attr.put_handler
-        with self.puts_in_flight.put(name):
+        try:  # attr.validate, in line
+            value = attr.meta.validate(value)
+        except BadValueError as e:
+            raise BadValueError(f"{self.mri}.{name}: {e}") from None
+        own = self._put_methods.get(name, _UNKNOWN)
+        if own is _UNKNOWN:  # looked up once per attribute, not per put
+            own = self._put_methods[name] = getattr(self, f"put_{name}", None)
+        handler = own or attr.put_handler
+        # begin/end rather than the context manager: once per put
+        puts_in_flight = self.puts_in_flight
+        entry = puts_in_flight.begin(name)
+        try:
             if handler is None:
                 attr.set_value(value, validate=False)
                 return
             result = handler(value)
             if asyncio.iscoroutine(result):
                 await result
+        finally:
+            puts_in_flight.end(name, entry)
 
     def writer_of(self, field: str) -> str | None:
         """The origin (an mri) of the latest put to ``field`` in flight."""

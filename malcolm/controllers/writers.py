@@ -31,21 +31,41 @@ class PutsInFlight:
     def __init__(self) -> None:
         self._origins: dict[str, list[list[str | None]]] = {}
 
-    @contextlib.contextmanager
-    def put(self, field: str) -> Iterator[None]:
-        """Record a put to ``field`` by the current :data:`WRITER` until it ends."""
+    def begin(self, field: str) -> list[str | None]:
+        """Record a put to ``field`` by the current :data:`WRITER`; returns the
+        entry to give :meth:`end` when it finishes (in a ``finally``)."""
         entry = [WRITER.get()]  # a fresh list: removed by identity
-        stack = self._origins.setdefault(field, [])
-        stack.append(entry)
-        try:
-            yield
-        finally:
+        stack = self._origins.get(field)
+        if stack is None:
+            self._origins[field] = [entry]
+        else:
+            stack.append(entry)
+        return entry
+
+    def end(self, field: str, entry: list[str | None]) -> None:
+        """Forget the put :meth:`begin` recorded as ``entry``."""
+        stack = self._origins.get(field)
+        if stack is None:
+            return
+        if stack[-1] is entry:  # the common case: the latest put ends first
+            stack.pop()
+        else:
             for i, item in enumerate(stack):
                 if item is entry:
                     del stack[i]
                     break
-            if not stack:
-                self._origins.pop(field, None)
+        if not stack:
+            del self._origins[field]
+
+    @contextlib.contextmanager
+    def put(self, field: str) -> Iterator[None]:
+        """Record a put to ``field`` by the current :data:`WRITER` until it ends
+        (:meth:`begin` and :meth:`end` as a context manager)."""
+        entry = self.begin(field)
+        try:
+            yield
+        finally:
+            self.end(field, entry)
 
     def writer_of(self, field: str) -> str | None:
         """The origin of the latest put to ``field`` still in flight, or None."""

@@ -90,12 +90,18 @@ class Block:
             raise AttributeError(f"{self.mri} has no field {name!r}") from None
 
     def attribute(self, name: str) -> Attribute:
+        fld = self._fields.get(name)
+        if type(fld) is Attribute:  # the common case, without __getitem__
+            return fld
         fld = self[name]
         if not isinstance(fld, Attribute):
             raise NotFoundError(f"{self.mri}.{name} is not an attribute")
         return fld
 
     def method(self, name: str) -> Method:
+        fld = self._fields.get(name)
+        if type(fld) is Method:  # the common case, without __getitem__
+            return fld
         fld = self[name]
         if not isinstance(fld, Method):
             raise NotFoundError(f"{self.mri}.{name} is not a method")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from threading import get_ident
 from typing import TYPE_CHECKING, Any
 
 from .alarm import Alarm
@@ -101,19 +102,25 @@ class Attribute(Field):
         # runs for every change of every attribute
         block = self.block
         owner = block.owner if block is not None else None
-        if owner is not None and not owner.here():
+        if owner is not None and owner.thread != get_ident():  # here(), in line
             if self._off_loop(self.set_value, value, alarm, timeStamp, validate):
                 return
         if validate:
             value = self.validate(value)
         self.value = value
-        self.timeStamp = stamp = timeStamp or TimeStamp.now()
+        if timeStamp is None:
+            self.timeStamp, stamp_dict = TimeStamp.now_and_dict()
+        else:
+            self.timeStamp = timeStamp
+            stamp_dict = timeStamp.to_dict()
         name = self.name
-        changes: list[Change] = [[[name, "value"], self.value_dict()]]
+        # a scalar is its own plain data (value_dict's answer, without a call)
+        plain_value = value if type(value) in _PLAIN else self.value_dict()
+        changes: list[Change] = [[[name, "value"], plain_value]]
         if alarm is not None and alarm != self.alarm:
             self.alarm = alarm
             changes.append([[name, "alarm"], alarm.to_dict()])
-        changes.append([[name, "timeStamp"], stamp.to_dict()])
+        changes.append([[name, "timeStamp"], stamp_dict])
         if block is not None:
             block.notify(changes)
 
@@ -194,18 +201,7 @@ class MethodLog:
     typeid = "malcolm:core/MethodLog:1.0"
 
     def to_dict(self) -> dict[str, Any]:
-        value = self.value
-        if type(value) is dict and _PLAIN.issuperset(map(type, value.values())):
-            value = dict(value)  # plain() of scalars (most arguments), in C
-        else:
-            value = plain(value)
-        return {
-            "typeid": self.typeid,
-            "value": value,
-            "present": list(self.present),
-            "alarm": self.alarm.to_dict(),
-            "timeStamp": self.timeStamp.to_dict(),
-        }
+        return _log_dict(self.value, self.present, self.alarm, self.timeStamp)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> MethodLog:
@@ -215,6 +211,48 @@ class MethodLog:
             Alarm.from_dict(d.get("alarm", {})),
             TimeStamp.from_dict(d.get("timeStamp", {})),
         )
+
+
+#: Alarm.ok as plain data, copied for each log that has it (most)
+_OK_ALARM = Alarm.ok.to_dict()
+
+
+def _log_dict(
+    value: Any, present: list[str], alarm: Alarm, stamp: TimeStamp
+) -> dict[str, Any]:
+    """A MethodLog as plain data (its to_dict), from its parts."""
+    if type(value) is dict and _PLAIN.issuperset(map(type, value.values())):
+        value = dict(value)  # plain() of scalars (most arguments), in C
+    else:
+        value = plain(value)
+    return {
+        "typeid": MethodLog.typeid,
+        "value": value,
+        "present": list(present),
+        "alarm": dict(_OK_ALARM) if alarm is Alarm.ok else alarm.to_dict(),
+        "timeStamp": stamp.to_dict(),
+    }
+
+
+def _new_log(value: dict[str, Any], alarm: Alarm) -> tuple[MethodLog, dict[str, Any]]:
+    """A MethodLog of ``value`` (all its keys present) with ``alarm``, stamped
+    now, and its plain data (its to_dict): once per call of every method,
+    twice, so made without the dataclass's ``__init__`` or further calls."""
+    stamp, stamp_dict = TimeStamp.now_and_dict()
+    present = list(value)
+    log = object.__new__(MethodLog)
+    log.__dict__.update(value=value, present=present, alarm=alarm, timeStamp=stamp)
+    if _PLAIN.issuperset(map(type, value.values())):
+        plain_value: Any = dict(value)  # plain() of scalars (most), in C
+    else:
+        plain_value = plain(value)
+    return log, {
+        "typeid": MethodLog.typeid,
+        "value": plain_value,
+        "present": list(present),
+        "alarm": dict(_OK_ALARM) if alarm is Alarm.ok else alarm.to_dict(),
+        "timeStamp": stamp_dict,
+    }
 
 
 class Method(Field):
@@ -243,23 +281,22 @@ class Method(Field):
         # once per call of every method
         block = self.block
         owner = block.owner if block is not None else None
-        if owner is not None and not owner.here():
+        if owner is not None and owner.thread != get_ident():  # here(), in line
             if self._off_loop(self.set_took, args):
                 return
-        self.took = log = MethodLog(dict(args), list(args), Alarm.ok, TimeStamp.now())
+        self.took, data = _new_log(dict(args), Alarm.ok)
         if block is not None:
-            block.notify([[[self.name, "took"], log.to_dict()]])
+            block.notify([[[self.name, "took"], data]])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
         block = self.block
         owner = block.owner if block is not None else None
-        if owner is not None and not owner.here():
+        if owner is not None and owner.thread != get_ident():  # here(), in line
             if self._off_loop(self.set_returned, value, alarm):
                 return
-        value = dict(value or {})
-        self.returned = log = MethodLog(value, list(value), alarm, TimeStamp.now())
+        self.returned, data = _new_log(dict(value) if value else {}, alarm)
         if block is not None:
-            block.notify([[[self.name, "returned"], log.to_dict()]])
+            block.notify([[[self.name, "returned"], data]])
 
     def set_writeable(self, writeable: bool) -> None:
         if self._off_loop(self.set_writeable, writeable):

@@ -157,9 +157,13 @@ class NumberMeta(Meta):
         self.display = dict(display or {})
 
     def validate(self, value: Any) -> int | float:
-        value = _number(self.dtype, value)
-        lo = self.display.get("limitLow")
-        hi = self.display.get("limitHigh")
+        if type(value) is not float or self.dtype != "float64":
+            value = _number(self.dtype, value)  # (a float64's float is itself)
+        display = self.display
+        if not display:  # most metas: no limits to test
+            return value
+        lo = display.get("limitLow")
+        hi = display.get("limitHigh")
         if lo is not None and hi is not None and lo < hi and not lo <= value <= hi:
             raise BadValueError(f"{value} is outside the limits [{lo}, {hi}]")
         return value
@@ -311,25 +315,36 @@ class MethodMeta(Meta):
         An argument given as None counts as not given. Defaults are validated
         (and so copied) too, so a handler cannot change them by mutation.
         """
-        if not isinstance(args, Mapping):
+        # once per call of every method: the checks in C where they can be
+        if type(args) is not dict and not isinstance(args, Mapping):
             raise BadValueError(
                 f"{method}: arguments must be a mapping, got {_describe(args)}"
             )
-        unknown = [k for k in args if k not in self.takes.elements]
-        if unknown:
-            takes = ", ".join(self.takes.elements) or "no arguments"
+        elements = self.takes.elements
+        if not elements.keys() >= args.keys():
+            unknown = [k for k in args if k not in elements]
+            takes = ", ".join(elements) or "no arguments"
             raise BadValueError(
                 f"{method}.{unknown[0]}: unknown argument (takes {takes})"
             )
         out: dict[str, Any] = {}
-        for name, meta in self.takes.elements.items():
-            if name in args and args[name] is not None:
+        defaults = self.defaults
+        for name, meta in elements.items():
+            value = args.get(name)
+            if value is not None:
                 try:
-                    out[name] = meta.validate(args[name])
+                    out[name] = meta.validate(value)
                 except BadValueError as e:
                     raise BadValueError(f"{method}.{name}: {e}") from None
-            elif name in self.defaults:
-                out[name] = self._default(name, meta)
+            elif name in defaults:
+                default = defaults[name]
+                if type(default) in _IMMUTABLE and default is not None:
+                    try:  # nothing to copy (most defaults): _default in line
+                        out[name] = meta.validate(default)
+                    except BadValueError:
+                        out[name] = default
+                else:
+                    out[name] = self._default(name, meta)
             elif name in self.takes.required:
                 raise BadValueError(f"{method}.{name}: missing required argument")
         return out

@@ -39,6 +39,8 @@ class Subscription:
         self.delta = delta
         #: gets the block's own changes lying below the path (see subscribe)
         self.below = below
+        #: the field subscribed to, for a path [mri, field] (else None)
+        self.field: str | None = self.rest[0] if len(self.rest) == 1 else None
         self.active = True
 
     def __repr__(self) -> str:
@@ -259,13 +261,21 @@ class Process:
 
     async def put(self, path: Sequence[str], value: Any) -> None:
         """Put to ``[mri, attribute]`` or ``[mri, attribute, "value"]``."""
-        mri, name = self._field_path(path, "put")
-        await self.get_controller(mri).put(name, value)
+        if len(path) == 2:  # the common case, as _field_path would give it
+            mri, name = path
+        else:
+            mri, name = self._field_path(path, "put")
+        controller = self._controllers.get(mri) or self.get_controller(mri)
+        await controller.put(name, value)
 
     async def post(self, path: Sequence[str], params: dict[str, Any] | None = None):
         """Call a method at ``[mri, method]``; returns what it returns."""
-        mri, name = self._field_path(path, "post")
-        return await self.get_controller(mri).call(name, params or {})
+        if len(path) == 2:  # the common case, as _field_path would give it
+            mri, name = path
+        else:
+            mri, name = self._field_path(path, "post")
+        controller = self._controllers.get(mri) or self.get_controller(mri)
+        return await controller.call(name, params or {})
 
     @staticmethod
     def _field_path(path: Sequence[str], what: str) -> tuple[str, str]:
@@ -371,18 +381,63 @@ class Process:
         if not subs:
             return  # nothing queued: an outer _flush (if any) has the rest
         queue = self._queue
-        for sub in list(subs):
-            if sub.below is not None:
-                touching = _below(sub.rest, changes)
-                if touching is not None:
-                    if touching:
-                        queue.append((sub, touching, sub.below))
-                    continue
+        # no copy of subs: nothing below changes them (callbacks run in _flush)
+        for sub in subs:
+            below = sub.below
+            if below is not None:
+                field = sub.field
+                if field is not None:
+                    # a field's subscriber (the common case), _below in line:
+                    # changes all below the field go as they are, none: skip
+                    hit = other = False
+                    for change in changes:
+                        path = change[0]
+                        if not path:
+                            break  # the block replaced or deleted
+                        if path[0] == field:
+                            if len(path) == 1:
+                                break  # the field replaced or deleted
+                            hit = True
+                        else:
+                            other = True
+                    else:
+                        if hit:
+                            touching = _below(sub.rest, changes) if other else changes
+                            queue.append((sub, touching, below))
+                        continue
+                elif not sub.rest:
+                    # the whole block's (_below in line): every change, as it
+                    # is, unless one replaces the block
+                    for change in changes:
+                        if not change[0]:
+                            break
+                    else:
+                        queue.append((sub, changes, below))
+                        continue
+                else:
+                    touching = _below(sub.rest, changes)
+                    if touching is not None:
+                        if touching:
+                            queue.append((sub, touching, below))
+                        continue
             relative = self._relative(sub, changes)
             if relative:
                 payload = relative if sub.delta else self._get_or_none(sub.path)[1]
                 queue.append((sub, payload, sub.callback))
-        self._flush()
+        if self._delivering:
+            return  # the outer _flush delivers these after what came before
+        # _flush, in line (once per change of every block with subscribers)
+        self._delivering = True
+        try:
+            while queue:
+                sub, payload, callback = queue.popleft()
+                if sub.active:
+                    try:
+                        callback(payload)
+                    except Exception:
+                        log.exception("subscriber %r raised", sub)
+        finally:
+            self._delivering = False
 
     def _flush(self) -> None:
         if self._delivering:

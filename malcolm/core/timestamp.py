@@ -24,11 +24,26 @@ class TimeStamp:
         # field (half the cost; every change of every attribute takes one)
         seconds, nanoseconds = divmod(time.time_ns(), 1_000_000_000)
         stamp = object.__new__(cls)
-        fields = stamp.__dict__
-        fields["secondsPastEpoch"] = seconds
-        fields["nanoseconds"] = nanoseconds
-        fields["userTag"] = 0
+        stamp.__dict__.update(
+            secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
+        )
         return stamp
+
+    @classmethod
+    def now_and_dict(cls) -> tuple[TimeStamp, dict[str, Any]]:
+        """``now()`` and its ``to_dict()``, made in one call (every change
+        of an attribute takes one, a method's took and returned one each)."""
+        seconds, nanoseconds = divmod(time.time_ns(), 1_000_000_000)
+        stamp = object.__new__(cls)
+        stamp.__dict__.update(
+            secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
+        )
+        return stamp, {
+            "typeid": cls.typeid,
+            "secondsPastEpoch": seconds,
+            "nanoseconds": nanoseconds,
+            "userTag": 0,
+        }
 
     def to_time(self) -> float:
         return self.secondsPastEpoch + self.nanoseconds * 1e-9

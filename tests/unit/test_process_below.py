@@ -116,3 +116,58 @@ def test_below_is_ignored_for_whole_values():
         await process.stop()
 
     asyncio.run(main())
+
+
+def test_a_field_subscriber_gets_what_below_would_give_for_every_batch_shape():
+    """_on_changes tests a field's and a block's subscribers in line: for
+    batches all below the field, mixed with other fields', of other fields
+    only, and replacing the field or the block, it delivers what _below says
+    (or the callback)."""
+    from malcolm.core.process import _below
+
+    async def main() -> None:
+        process = make()
+        await process.start()
+        got: list[tuple[str, Any]] = []
+        whole: list[tuple[str, Any]] = []
+        process.subscribe(
+            ["A", "counter"],
+            lambda p: got.append(("callback", p)),
+            below=lambda p: got.append(("below", p)),
+        )
+        process.subscribe(
+            ["A"],
+            lambda p: whole.append(("callback", p)),
+            below=lambda p: whole.append(("below", p)),
+        )
+        got.clear()
+        value = ["counter", "value"]
+        stamp = ["counter", "timeStamp"]
+        other = ["delta", "value"]
+        batches = [
+            [[value, 1.0], [stamp, 2]],
+            [[other, 1.0], [value, 2.0]],
+            [[value, 2.0], [other, 1.0], [stamp, 3]],
+            [[other, 4.0]],
+            [[["counter"], process.get(["A", "counter"])]],
+            [[value, 5.0], [["counter"]]],
+        ]
+        whole.clear()
+        process._on_changes("A", [[value, 6.0], [[], process.get(["A"])]])
+        assert [kind for kind, _ in whole] == ["callback"]  # the block replaced
+        for changes in batches:
+            got.clear()
+            whole.clear()
+            process._on_changes("A", changes)
+            assert whole == [("below", changes)] and whole[0][1] is changes
+            expected = _below(["counter"], changes)
+            if expected is None:
+                assert [kind for kind, _ in got] == ["callback"], changes
+            elif expected:
+                assert got == [("below", expected)], changes
+                if expected == changes:
+                    assert got[0][1] is changes  # as the block gave them
+            else:
+                assert got == [], changes
+
+    asyncio.run(main())
