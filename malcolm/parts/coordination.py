@@ -370,8 +370,9 @@ class DetectorPart(DeviceChildPart):
     """A detector manager in the scan: armed at configure, waits for frames.
 
     Adds ``frameTimeout`` to the beamline's configure (0: the detector's
-    default), handed to a detector whose configure takes it: in External
-    mode its run faults when no frame comes for that long (a lost trigger).
+    default), handed to a detector whose configure takes it: its run faults
+    when no frame comes for that long, saying what it knows of why
+    (``detector_manager.stall_message``).
     """
 
     def setup(self, registrar: PartRegistrar) -> None:
