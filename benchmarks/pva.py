@@ -464,14 +464,21 @@ def row(case: str, malcolm: float, bare: float, target: str, ok: bool) -> str:
     )
 
 
-def main(ops: int = 300, load: bool = True) -> None:
+def serve_demo() -> tuple[Any, Any, Any, int, int]:
+    """The demo process started in a thread of this one (a ThreadedProcess)
+    and served on free loopback ports: the process, its thread, the pvAccess
+    server and the server's UDP and TCP ports."""
     process = demo_process()
     tp = start_process(process)
     udp = free_port(socket.SOCK_DGRAM)
     served = process.call_threadsafe(
         start_pva_server, process, 0, server_conf(udp)
     ).result(10)
-    tcp = int(served.address.rsplit(":", 1)[1])
+    return process, tp, served, udp, int(served.address.rsplit(":", 1)[1])
+
+
+def main(ops: int = 300, load: bool = True) -> None:
+    process, tp, served, udp, tcp = serve_demo()
     m = client(udp, tcp)
     greet_type = m.rpc(
         "HELLO.greet", Value(Type([("name", "s")]), {"name": "x"}), timeout=5

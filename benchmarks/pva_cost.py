@@ -19,7 +19,6 @@ times what it costs in a tight loop).
 from __future__ import annotations
 
 import concurrent.futures
-import socket
 import sys
 from collections.abc import Callable
 from types import FrameType
@@ -27,11 +26,7 @@ from typing import Any
 
 from p4p import Type, Value
 
-from malcolm.demo import demo_process
-from malcolm.embed import start_process
-from malcolm.io.pva import start_pva_server
-
-from .pva import WIDTH, Bare, client, free_port, server_conf
+from .pva import WIDTH, Bare, client, serve_demo
 
 
 class Op:
@@ -85,14 +80,8 @@ def counted(loop: Any, func: Callable[[], Any], warm: int = 50) -> tuple[int, in
 
 
 def main() -> None:
-    process = demo_process()
-    tp = start_process(process)
+    process, tp, served, udp, tcp = serve_demo()
     loop = process.loop
-    udp = free_port(socket.SOCK_DGRAM)
-    served = process.call_threadsafe(
-        start_pva_server, process, 0, server_conf(udp)
-    ).result(10)
-    tcp = int(served.address.rsplit(":", 1)[1])
     ctx = client(udp, tcp)
     args = Value(Type([("name", "s")]), {"name": "bench"})
     greet_type = ctx.rpc("HELLO.greet", args, timeout=5).type()
