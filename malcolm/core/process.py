@@ -424,20 +424,7 @@ class Process:
             if relative:
                 payload = relative if sub.delta else self._get_or_none(sub.path)[1]
                 queue.append((sub, payload, sub.callback))
-        if self._delivering:
-            return  # the outer _flush delivers these after what came before
-        # _flush, in line (once per change of every block with subscribers)
-        self._delivering = True
-        try:
-            while queue:
-                sub, payload, callback = queue.popleft()
-                if sub.active:
-                    try:
-                        callback(payload)
-                    except Exception:
-                        log.exception("subscriber %r raised", sub)
-        finally:
-            self._delivering = False
+        self._flush()
 
     def _flush(self) -> None:
         if self._delivering:
