@@ -201,7 +201,7 @@ class MethodLog:
     typeid = "malcolm:core/MethodLog:1.0"
 
     def to_dict(self) -> dict[str, Any]:
-        return _log_dict(self.value, self.present, self.alarm, self.timeStamp)
+        return _log_dict(self.value, self.present, self.alarm, self.timeStamp.to_dict())
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> MethodLog:
@@ -218,9 +218,10 @@ _OK_ALARM = Alarm.ok.to_dict()
 
 
 def _log_dict(
-    value: Any, present: list[str], alarm: Alarm, stamp: TimeStamp
+    value: Any, present: list[str], alarm: Alarm, stamp: dict[str, Any]
 ) -> dict[str, Any]:
-    """A MethodLog as plain data (its to_dict), from its parts."""
+    """A MethodLog as plain data (its to_dict), from its parts (its stamp's
+    already plain)."""
     if type(value) is dict and _PLAIN.issuperset(map(type, value.values())):
         value = dict(value)  # plain() of scalars (most arguments), in C
     else:
@@ -230,29 +231,19 @@ def _log_dict(
         "value": value,
         "present": list(present),
         "alarm": dict(_OK_ALARM) if alarm is Alarm.ok else alarm.to_dict(),
-        "timeStamp": stamp.to_dict(),
+        "timeStamp": stamp,
     }
 
 
 def _new_log(value: dict[str, Any], alarm: Alarm) -> tuple[MethodLog, dict[str, Any]]:
     """A MethodLog of ``value`` (all its keys present) with ``alarm``, stamped
-    now, and its plain data (its to_dict): once per call of every method,
-    twice, so made without the dataclass's ``__init__`` or further calls."""
+    now, and its plain data (its to_dict): twice per call of every method,
+    so made without the dataclass's ``__init__``."""
     stamp, stamp_dict = TimeStamp.now_and_dict()
     present = list(value)
     log = object.__new__(MethodLog)
     log.__dict__.update(value=value, present=present, alarm=alarm, timeStamp=stamp)
-    if _PLAIN.issuperset(map(type, value.values())):
-        plain_value: Any = dict(value)  # plain() of scalars (most), in C
-    else:
-        plain_value = plain(value)
-    return log, {
-        "typeid": MethodLog.typeid,
-        "value": plain_value,
-        "present": list(present),
-        "alarm": dict(_OK_ALARM) if alarm is Alarm.ok else alarm.to_dict(),
-        "timeStamp": stamp_dict,
-    }
+    return log, _log_dict(value, present, alarm, stamp_dict)
 
 
 class Method(Field):
