@@ -36,7 +36,6 @@ import numpy as np
 from epics import dbr
 
 from malcolm.core import Alarm, AlarmSeverity, AlarmStatus, TimeStamp
-from malcolm.core.threads import call_threadsafe
 
 from ..channel import (
     Backend,
@@ -116,8 +115,8 @@ def info_of(ftype: int | None, md: dict[str, Any]) -> dict[str, Any]:
 
 class PVFanout:
     """The one listener of a :class:`~.link.Link` for the channels of one
-    asyncio loop: hands each event to the loop once (one
-    :func:`~malcolm.core.threads.call_threadsafe` hop) and there gives it to
+    asyncio loop: hands each event to the loop once (one :func:`to_loop`
+    hop) and there gives it to
     every channel in turn, in one loop callback.
 
     It keeps what it last gave on the loop (connected, control information,
@@ -144,8 +143,7 @@ class PVFanout:
         self._hop(self._info_event, link.ftype, payload[1])
 
     def _hop(self, func: Callable[..., None], *args: Any) -> None:
-        if not self.loop.is_closed():
-            call_threadsafe(self.loop, func, *args)
+        to_loop(self.loop, func, *args)
 
     # ---- on the loop: one callback per event, every channel
     def _connection(self, up: bool) -> None:
@@ -190,6 +188,27 @@ class PVFanout:
             self.link.detach(self)
 
 
+def to_loop(
+    loop: asyncio.AbstractEventLoop, func: Callable[..., None], *args: Any
+) -> None:
+    """Run ``func(*args)`` on ``loop``: at once on the loop's own thread, else
+    by one ``loop.call_soon_threadsafe`` (nothing if the loop is closed).
+
+    The short road of docs/channels.md's thread-to-loop paths, for what
+    libca's threads hand over (events, get and put answers): plain functions
+    whose result nobody waits for, so no Future is made in libca's thread
+    and settled on the loop, as :func:`~malcolm.core.threads.call_threadsafe`
+    does; what they change, they change on the loop."""
+    if asyncio._get_running_loop() is loop:
+        func(*args)
+        return
+    if not loop.is_closed():
+        try:
+            loop.call_soon_threadsafe(func, *args)
+        except RuntimeError:  # closed meanwhile: nobody listens
+            pass
+
+
 #: (PV name, loop) -> the fanout of that PV's channels on that loop
 _fanouts: dict[tuple[str, asyncio.AbstractEventLoop], PVFanout] = {}
 
@@ -223,7 +242,8 @@ class PyepicsChannel(Channel):
         self._ever = False  # connected once: a loss is "connection lost"
 
     def _on_loop(self, func: Callable[..., None], *args: Any) -> None:
-        super()._on_loop(self._logged, func, *args)
+        if self._loop is not None:
+            to_loop(self._loop, self._logged, func, *args)
 
     def _logged(self, func: Callable[..., None], *args: Any) -> None:
         try:

@@ -13,7 +13,12 @@ reconnection and sends their first events again):
 What happens arrives in libca's own threads and goes, unconverted, to the
 link's listeners (:class:`LinkListener`), which hand it to their asyncio
 loop. Gets and puts are asynchronous too (``ca_array_get_callback`` and a put
-with callback): nothing here blocks waiting for the IOC.
+with callback): nothing here blocks waiting for the IOC. A get or put made on
+a running loop is sent by :func:`flush_soon`, once at the end of the loop's
+turn with every other request of that turn (a few packets where there was a
+``ca_flush_io`` each). libca sends one circuit's requests in the order they
+were made and the IOC serves them in that order, so a get made after a put
+still reads what the put left.
 
 Every libca call uses pyepics' one initial context, attached to whatever
 thread calls (``ca.use_initial_context``), so CA has one context per
@@ -285,7 +290,7 @@ class Link:
                 _pending_gets.pop(id(callback), None)
             callback(None, ca.message(status))
             return
-        ca.libca.ca_flush_io()  # now: a get after a put waits for this one
+        flush_soon()
 
     def put(self, value: Any, callback: GetCallback) -> None:
         """Put ``value`` with a callback (``ca_array_put_callback``):
@@ -309,7 +314,7 @@ class Link:
                 _pending_puts.pop(id(callback), None)
             callback(None, ca.message(status))
             return
-        ca.libca.ca_flush_io()
+        flush_soon()
 
 
 def _marshal(value: Any, ftype: int, count: int) -> tuple[Any, int]:
