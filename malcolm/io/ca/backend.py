@@ -301,7 +301,11 @@ class PyepicsChannel(Channel):
 
     def _shape(self, value: Any) -> Any:
         """The PV's value in the form of the channel's default."""
-        default, ftype = self._default, self._links[self.read].ftype
+        default = self._default
+        kind, wanted = type(value), type(default)
+        if (kind is float or kind is int) and (wanted is float or wanted is int):
+            return wanted(value)  # a scalar number (most events): at once
+        ftype = self._links[self.read].ftype
         if isinstance(default, bool):
             return bool(np.asarray(value).ravel()[0]) if np.size(value) else False
         if isinstance(default, str):
