@@ -29,6 +29,8 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import threading
+import weakref
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -188,25 +190,73 @@ class PVFanout:
             self.link.detach(self)
 
 
+class _Inbox:
+    """What libca's threads hand to one loop, in the order they hand it: one
+    ``call_soon_threadsafe`` (one wake-up of the loop, one write to its
+    self-pipe) for all that arrives before the loop takes it, not one each.
+    The loop runs what it found in one callback, then (if more came
+    meanwhile) again after its other ready work."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.loop = loop
+        self.items: list[tuple[Callable[..., None], tuple[Any, ...]]] = []
+        self.lock = threading.Lock()
+        self.due = False  # a drain is scheduled on the loop
+
+    def put(self, func: Callable[..., None], args: tuple[Any, ...]) -> None:
+        with self.lock:
+            self.items.append((func, args))
+            if self.due:
+                return
+            self.due = True
+        try:
+            self.loop.call_soon_threadsafe(self.drain)
+        except RuntimeError:  # closed meanwhile: nobody listens
+            pass
+
+    def drain(self) -> None:
+        with self.lock:
+            items, self.items = self.items, []
+        for func, args in items:
+            try:
+                func(*args)
+            except Exception:
+                log.exception("handing a Channel Access event to the loop failed")
+        with self.lock:
+            if not self.items:
+                self.due = False
+                return
+        self.loop.call_soon(self.drain)  # more came: after the loop's other work
+
+
+_inboxes: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _Inbox] = (
+    weakref.WeakKeyDictionary()
+)
+_inboxes_lock = threading.Lock()
+
+
 def to_loop(
     loop: asyncio.AbstractEventLoop, func: Callable[..., None], *args: Any
 ) -> None:
     """Run ``func(*args)`` on ``loop``: at once on the loop's own thread, else
-    by one ``loop.call_soon_threadsafe`` (nothing if the loop is closed).
+    through the loop's inbox (nothing if the loop is closed).
 
     The short road of docs/channels.md's thread-to-loop paths, for what
     libca's threads hand over (events, get and put answers): plain functions
     whose result nobody waits for, so no Future is made in libca's thread
     and settled on the loop, as :func:`~malcolm.core.threads.call_threadsafe`
-    does; what they change, they change on the loop."""
+    does, and one wake-up of the loop for all that arrives before it runs
+    (:class:`_Inbox`), in order; what they change, they change on the loop."""
     if asyncio._get_running_loop() is loop:
         func(*args)
         return
-    if not loop.is_closed():
-        try:
-            loop.call_soon_threadsafe(func, *args)
-        except RuntimeError:  # closed meanwhile: nobody listens
-            pass
+    if loop.is_closed():
+        return
+    inbox = _inboxes.get(loop)
+    if inbox is None:
+        with _inboxes_lock:
+            inbox = _inboxes.setdefault(loop, _Inbox(loop))
+    inbox.put(func, args)
 
 
 #: (PV name, loop) -> the fanout of that PV's channels on that loop
