@@ -62,8 +62,37 @@ def _context() -> None:
     ca.use_initial_context()
 
 
+#: the TIME forms of one number (most events): a pointer to their struct
+_TIME_NUMBERS = {
+    ftype: ctypes.POINTER(dbr.Map[ftype])
+    for ftype in (dbr.TIME_DOUBLE, dbr.TIME_FLOAT, dbr.TIME_LONG, dbr.TIME_INT,
+                  dbr.TIME_ENUM)
+}  # fmt: skip
+
+
 def _unpack(args: Any) -> Payload | None:
-    """The value and metadata of a libca event (a get or a monitor)."""
+    """The value and metadata of a libca event (a get or a monitor).
+
+    One number in its TIME form (most events) is read from its struct at
+    once, giving what pyepics' unpacking gives (:func:`_unpack_any`, which
+    takes the rest) in a fraction of the time, in libca's thread."""
+    if args.count == 1:
+        pointer = _TIME_NUMBERS.get(args.type)
+        if pointer is not None and args.raw_dbr:
+            event = ctypes.cast(args.raw_dbr, pointer).contents
+            stamp = event.stamp
+            return event.value, {
+                "status": event.status,
+                "severity": event.severity,
+                "timestamp": dbr.make_unixtime(stamp),
+                "posixseconds": stamp.secs + dbr.EPICS2UNIX_EPOCH,
+                "nanoseconds": stamp.nsec,
+            }
+    return _unpack_any(args)
+
+
+def _unpack_any(args: Any) -> Payload | None:
+    """The value and metadata of any libca event, by pyepics' unpacking."""
     raw = dbr.cast_args(args)
     if raw[1] is None:
         return None
