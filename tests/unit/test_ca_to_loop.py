@@ -130,3 +130,19 @@ def test_what_comes_while_the_loop_takes_a_batch_runs_after_its_other_work() -> 
         return order
 
     assert asyncio.run(scenario()) == ["first", "other", "second"]
+
+
+def test_a_backend_without_its_own_put_and_read_puts_then_gets() -> None:
+    from malcolm.io import SoftBackend
+
+    async def scenario() -> tuple[float, float]:
+        backend = SoftBackend()
+        backend.define("T:X_RBV", 0.0, follow=lambda v: round(v, 2))
+        channel = backend.channel("T:X_RBV", "T:X")
+        await channel.connect(1)
+        reading = await channel.put_and_read(0.1234)
+        await backend.close()
+        return reading.value, 0.12
+
+    got, want = asyncio.run(scenario())
+    assert got == want

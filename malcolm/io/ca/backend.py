@@ -475,6 +475,34 @@ class PyepicsChannel(Channel):
             raise ChannelError(f"{self.write}: cannot put {value!r}: {e}") from None
         await fut
 
+    async def put_and_read(self, value: Any) -> Reading:
+        """A put with completion, and the get of the readback sent from
+        libca's thread the moment the put completes (no hop to the loop and
+        back between them); the same errors as ``put`` then ``get``."""
+        self._check_open()
+        if self.write is None:
+            raise ChannelError(f"{self.read} is a readback: it has no PV to put to")
+        self.check_connected()
+        converted = self._to_pv(value)
+        fut = self._future()
+        readback = self._links[self.read]
+
+        def answered(payload: Payload | None, error: str) -> None:
+            self._on_loop(self._settle, fut, payload, error)
+
+        def done(_: Any, error: str) -> None:
+            if error:
+                self._on_loop(self._settle, fut, None, error)
+            else:
+                readback.get(answered)  # now, in libca's thread
+
+        try:
+            self._links[self.write].put(converted, done)
+        except ValueError as e:
+            fut.cancel()
+            raise ChannelError(f"{self.write}: cannot put {value!r}: {e}") from None
+        return self._convert(await fut)
+
     async def _close(self) -> None:
         self._fail_pending(DisconnectedError(f"{self.name}: closed"))
         if self._loop is None:
