@@ -39,11 +39,23 @@ def cpu() -> float:
     return used.ru_utime + used.ru_stime
 
 
-def raw_puts(n: int) -> float:
+async def connected(process: Any, mri: str, timeout: float = 30.0) -> None:
+    """Wait until block ``mri``'s channels are connected (a process's
+    start waits 5 s for them; CA may take longer to find a new IOC's names
+    among many others)."""
+    deadline = time.monotonic() + timeout
+    while process.get([mri, "health", "value"]) != "OK":
+        if time.monotonic() > deadline:
+            health = process.get([mri, "health", "value"])
+            raise RuntimeError(f"{mri} not connected in {timeout} s: {health}")
+        await asyncio.sleep(0.05)
+
+
+def raw_puts(n: int, prefix: str = PREFIX) -> float:
     """CPU seconds of ``n`` raw pyepics puts and readback gets."""
     import epics
 
-    pv, rbv = f"{PREFIX}:CAM:Exposure", f"{PREFIX}:CAM:Exposure_RBV"
+    pv, rbv = f"{prefix}:CAM:Exposure", f"{prefix}:CAM:Exposure_RBV"
     epics.caget(rbv)
     began = cpu()
     for i in range(n):
@@ -52,20 +64,22 @@ def raw_puts(n: int) -> float:
     return cpu() - began
 
 
-async def puts(n: int, rounds: int) -> tuple[float, float]:
-    """CPU seconds per put+readback through a block and raw, alternated."""
+async def puts(n: int, rounds: int, prefix: str = PREFIX) -> tuple[float, float]:
+    """CPU seconds per put+readback through a block and raw, alternated
+    (the IOC of ``prefix``)."""
     from malcolm.config.build import build_definition
     from malcolm.core import Process
 
     process = Process("bench", channels={"ca": "pyepics"})
     build_definition(
-        "ADCore.DetectorDriver", {"prefix": f"{PREFIX}:CAM"}, "DRV", process=process
+        "ADCore.DetectorDriver", {"prefix": f"{prefix}:CAM"}, "DRV", process=process
     )
     await process.start()
     ours = raw = 0.0
     try:
+        await connected(process, "DRV")
         for _ in range(rounds):
-            raw += raw_puts(n)  # blocking: the loop waits meanwhile
+            raw += raw_puts(n, prefix)  # blocking: the loop waits meanwhile
             began = cpu()
             for i in range(n):
                 await process.put(["DRV", "exposure"], 0.001 * (i % 100 + 1))
@@ -86,6 +100,10 @@ async def events(seconds: float) -> tuple[float, float]:
 
     ticker, run = f"{PREFIX}:BENCH:Ticker", f"{PREFIX}:BENCH:Run"
     loop = asyncio.get_running_loop()
+    if not await loop.run_in_executor(
+        None, lambda: epics.PV(run).wait_for_connection(30)
+    ):
+        raise RuntimeError(f"{run} not connected in 30 s")
     await loop.run_in_executor(None, epics.caput, run, 1, True)
     await asyncio.sleep(0.3)  # ticking steadily
     try:
@@ -95,7 +113,8 @@ async def events(seconds: float) -> tuple[float, float]:
             counts[0] += 1
 
         pv = epics.PV(ticker, callback=raw, auto_monitor=True)
-        pv.wait_for_connection(5)
+        if not pv.wait_for_connection(30):
+            raise RuntimeError(f"{ticker} not connected in 30 s")
         await asyncio.sleep(0.3)
         counts[0], began = 0, cpu()
         await asyncio.sleep(seconds)
@@ -107,6 +126,7 @@ async def events(seconds: float) -> tuple[float, float]:
         process.add_controller(StatefulController("T", [CALongPart("n", rbv=ticker)]))
         await process.start()
         try:
+            await connected(process, "T")
             seen = [0]
             process.subscribe(
                 ["T", "n", "value"], lambda _: seen.__setitem__(0, seen[0] + 1)

@@ -1,19 +1,26 @@
-"""``benchmarks/ca_cost.py`` prints its table (a short run here; its
-figures depend on the machine and are not asserted beyond being
-measured: they are in the report)."""
+"""``benchmarks/ca_cost.py`` measures a put+readback's CPU through a block
+and raw (against the session's IOC: a second IOC on this host is not found
+by CA's unicast search while it runs; the benchmark's monitor figure needs
+its own IOC's ticker and is run by the benchmark alone). Its figures depend
+on the machine and are not asserted beyond being measured."""
 
 from __future__ import annotations
 
+import asyncio
+
 from benchmarks import ca_cost
-from benchmarks.table import HEADER, render
+from malcolm.sim.beamline_ioc import SimIOC
+
+from .conftest import PREFIX
 
 
-def test_the_ca_cost_benchmark_measures_both_operations() -> None:
-    rows = ca_cost.measure(n=20, rounds=1, seconds=0.3)
-    assert [r.case for r in rows] == [
-        "put+readback CPU, block / raw pyepics",
-        "monitor event CPU, block / raw pyepics",
-    ]
-    assert all(r.measured > 0 for r in rows)
-    lines = render(rows, ca_cost.SOURCE).splitlines()
-    assert lines[0].split() == list(HEADER)
+def test_the_ca_cost_benchmark_measures_a_put_both_ways(ioc: SimIOC) -> None:
+    import epics
+
+    exposure = f"{PREFIX}:CAM:Exposure"
+    original = epics.caget(exposure, timeout=5)
+    try:
+        ours, raw = asyncio.run(ca_cost.puts(20, 1, PREFIX))
+    finally:  # the session IOC's value, for later modules
+        epics.caput(exposure, original, wait=True)
+    assert ours > 0 and raw > 0
