@@ -267,7 +267,15 @@ class Method(Field):
         self.took = MethodLog()
         self.returned = MethodLog()
 
-    def set_took(self, args: Mapping[str, Any]) -> None:
+    def set_took(
+        self,
+        args: Mapping[str, Any],
+        hold: Callable[[str, Change, list[str]], None] | None = None,
+    ) -> None:
+        """Log the arguments of a call beginning and publish them; ``hold``
+        (the block's process's :meth:`~malcolm.core.Process.hold`): published
+        through it, to go with this method's returned if nothing else is
+        published first."""
         # on the loop (the common case) checked in line, as set_value does:
         # once per call of every method
         block = self.block
@@ -277,7 +285,10 @@ class Method(Field):
                 return
         self.took, data = _new_log(dict(args), Alarm.ok)
         if block is not None:
-            block.notify([[[self.name, "took"], data]])
+            if hold is None:
+                block.notify([[[self.name, "took"], data]])
+            else:
+                hold(block.mri, [[self.name, "took"], data], [self.name, "returned"])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
         block = self.block
