@@ -541,3 +541,47 @@ def test_a_call_that_does_not_wait_is_one_update_of_took_and_returned(served):  
         finally:
             for sub in subs:
                 sub.close()
+
+
+def test_a_method_channel_answers_as_result_value_types_it_each_call(served):  # noqa: F811
+    """A call on a method's channel with plain arguments is read in line and
+    its result typed by result_value, then from its memo for results of the
+    same keys and types while the returns meta is the same; a new returns
+    meta is read and typed afresh; arguments that are not scalars still go
+    through method_args."""
+    from p4p import Type, Value
+
+    from malcolm.controllers.base import Controller
+    from malcolm.io.pva.results import result_value
+    from malcolm.parts.demo.hello import HelloPart
+
+    tp, process, server, ctx = served
+
+    async def add() -> None:
+        controller = Controller("HI", [HelloPart("hello")])
+        process.add_controller(controller)
+        await controller.start()
+
+    process.call_threadsafe(add).result(10)
+    args = Value(Type([("name", "s")]), {"name": "a"})
+    got = [ctx.rpc("HI.greet", args, timeout=5) for _ in range(2)]
+    chan = server._channels["HI.greet"]
+    returns = process.call_threadsafe(lambda: chan.data["meta"]["returns"]).result(5)
+    want = result_value({"greeting": "Hello a"}, returns)
+    for answer in got:
+        assert answer.type().aspy() == want.type().aspy()
+        assert answer.todict() == want.todict()
+    assert chan._memo and chan._memo[0] is returns
+    block = process.get_block("HI")
+    new = dict(returns, required=[])  # a change that fits: a new object
+
+    async def change() -> None:
+        block.notify([[["greet", "meta", "returns"], new]])
+
+    process.call_threadsafe(change).result(5)
+    answer = ctx.rpc("HI.greet", args, timeout=5)
+    assert answer["greeting"] == "Hello a"
+    memo = chan._memo
+    assert memo[0] is not returns and memo[0]["required"] == []
+    with pytest.raises(RuntimeError, match="BadValueError"):
+        ctx.rpc("HI.greet", Value(Type([("name", "as")]), {"name": ["x"]}), timeout=5)

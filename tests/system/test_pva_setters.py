@@ -102,6 +102,16 @@ def test_a_result_is_typed_as_map_to_value_types_it_each_call(blocks):
     # a key no meta describes: typed by what it holds, not kept
     got = result_value({"greeting": "x", "extra": [1, 2]}, returns)
     assert list(got["extra"]) == [1, 2]
+    # the memo: a result of scalars its fields take as they are
+    memo: list[Any] = []
+    first = result_value({"greeting": "a"}, returns, memo)
+    assert memo[0] is returns and memo[1:3] == [("greeting",), (str,)]
+    assert memo[3].aspy() == first.type().aspy()
+    again = Value(memo[3], {"greeting": "b"})
+    assert again.todict() == result_value({"greeting": "b"}, returns).todict()
+    memo.clear()
+    result_value({"greeting": "x", "extra": [1, 2]}, returns, memo)
+    assert memo == []  # not all typed by metas: nothing to reuse
 
 
 def test_a_structure_in_another_order_or_without_its_id_sets_the_same(blocks):

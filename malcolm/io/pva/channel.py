@@ -70,6 +70,7 @@ class _Channel(ChannelRequests):
         # the block meta and a meta channel go whole: never the fast path
         self._fast_ok = self.path[1:] != ["meta"]
         self._block = len(self.path) == 1  # the whole block's channel
+        self._memo: list[Any] = []  # result_value's (ChannelRequests._rpc)
         self._skip = len(self.path) - 1  # what begins a block's path of it
 
     @property

@@ -12,11 +12,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from p4p import Value
 from p4p.server.raw import SharedPV
 
 from malcolm.core import BadValueError
 
-from .convert import STRUCTURE, to_dict
+from .convert import _SCALAR_TYPES, STRUCTURE, to_dict
 from .results import method_args, result_value
 
 if TYPE_CHECKING:
@@ -28,6 +29,8 @@ __all__ = ["ChannelRequests"]
 # _plain_put give back as it is
 _VALUE = {"value"}
 _SCALARS = frozenset({float, int, str, bool})
+# a method channel's changes that leave its returns as they are
+_LOGS = frozenset({("took",), ("returned",)})
 
 
 class ChannelRequests:
@@ -40,6 +43,8 @@ class ChannelRequests:
     _pending: dict[tuple[str, ...], Any]
     _data: Any
     data: Any
+    #: result_value's memo of a method channel's last result (see _rpc)
+    _memo: list[Any]
 
     # ---- operations, on the loop (LoopSharedPV hands them there)
     def put(self, pv: SharedPV, op: Any) -> None:
@@ -79,10 +84,37 @@ class ChannelRequests:
         op.done()
 
     async def _rpc(self, op: Any) -> None:
-        mri, method, args = method_args(self.path, op.value(), op.pvRequest)
-        process = self.server.process
-        result = await process.post([mri, method], args)
-        op.done(result_value(result, self._returns(mri, method)))
+        value = op.value()
+        path = self.path
+        if len(path) != 2 or not isinstance(value, Value) or value.getID() != STRUCTURE:
+            mri, method, args = method_args(path, value, op.pvRequest)
+            result = await self.server.process.post([mri, method], args)
+            op.done(result_value(result, self._returns(mri, method)))
+            return
+        # a call on the method's own channel with its arguments as a plain
+        # structure (most): method_args's reading of them, in line
+        args = value.todict()
+        if not _SCALAR_TYPES.issuperset(map(type, args.values())):
+            args = method_args(path, value, op.pvRequest)[2]
+        result = await self.server.process.post(path, args)
+        # its returns as _returns reads them: the pending took and returned
+        # leave them as they are
+        try:
+            data = self._data if self._pending.keys() <= _LOGS else self.data
+            returns = data["meta"]["returns"]
+        except (KeyError, TypeError):
+            returns = self._returns(*path)
+        memo = self._memo
+        if (
+            type(result) is dict
+            and memo
+            and memo[0] is returns
+            and tuple(result) == memo[1]
+            and tuple(map(type, result.values())) == memo[2]
+        ):  # result_value's answer for these keys and types, in line
+            op.done(Value(memo[3], result))
+        else:
+            op.done(result_value(result, returns, memo))
 
     def _current(self, path: tuple[str, ...]) -> Any:
         """The channel's data, current at ``path``: the changes the fast path
