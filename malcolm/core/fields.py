@@ -215,6 +215,8 @@ class MethodLog:
 
 #: Alarm.ok as plain data, copied for each log that has it (most)
 _OK_ALARM = Alarm.ok.to_dict()
+_ALARM_OK = Alarm.ok
+_LOG_TYPEID = MethodLog.typeid
 
 
 def _log_dict(
@@ -243,7 +245,18 @@ def _new_log(value: dict[str, Any], alarm: Alarm) -> tuple[MethodLog, dict[str, 
     present = list(value)
     log = object.__new__(MethodLog)
     log.__dict__.update(value=value, present=present, alarm=alarm, timeStamp=stamp)
-    return log, _log_dict(value, present, alarm, stamp_dict)
+    # _log_dict(value, present, alarm, stamp_dict), in line
+    if type(value) is dict and _PLAIN.issuperset(map(type, value.values())):
+        data = dict(value)  # plain() of scalars (most arguments), in C
+    else:
+        data = plain(value)
+    return log, {
+        "typeid": _LOG_TYPEID,
+        "value": data,
+        "present": list(present),
+        "alarm": dict(_OK_ALARM) if alarm is _ALARM_OK else alarm.to_dict(),
+        "timeStamp": stamp_dict,
+    }
 
 
 class Method(Field):
