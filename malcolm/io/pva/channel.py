@@ -265,7 +265,10 @@ class _Channel(ChannelRequests):
                 setter, where = known
                 if not setter(value, data):
                     return False
-                pending.pop(where, None)
+                try:  # moved last (there after its path's first change)
+                    del pending[where]
+                except KeyError:
+                    pass
                 pending[where] = data
         except ValueError:  # (or a setter's: _apply then does it in full)
             return False
