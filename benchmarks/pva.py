@@ -10,7 +10,8 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
   process with a SharedPV per name, values of the very same types, whose
   handlers answer in p4p's thread: a greet RPC on a channel holding the
   method's structure that, as a served call does, posts ``took`` and
-  ``returned`` there before answering; a put that checks the number and
+  ``returned`` there (one update, as the served greet, which does not
+  wait) before answering; a put that checks the number and
   posts it with a timeStamp to the field's and the block's channels.
 - the floor of the call and put ratios: the bare server again (names L.*)
   whose handlers hand the same work to the process's idle loop and answer
@@ -179,23 +180,24 @@ class Bare:
             self.do_rpc(pv, op)
 
     def do_rpc(self, pv: SharedPV, op: Any) -> None:
-        """As a served method call: its channel gets ``took`` (the arguments,
-        defaults filled) then ``returned``, each a MethodLog update."""
+        """As a served method call that does not wait: its channel gets
+        ``took`` (the arguments, defaults filled) and ``returned``, two
+        MethodLogs in one update (docs/core.md: one batch), then the answer."""
         name = op.value()["name"]
-        self.log(pv, "took", {"name": name, "sleep": 0.0})
+        update = Value(self.method_type)
+        self.log(update, "took", {"name": name, "sleep": 0.0})
         greeting = f"Hello {name}"
-        self.log(pv, "returned", {"greeting": greeting})
+        self.log(update, "returned", {"greeting": greeting})
+        pv.post(update)
         op.done(Value(self.greet_type, {"greeting": greeting}))
 
-    def log(self, pv: SharedPV, which: str, value: dict[str, Any]) -> None:
-        update = Value(self.method_type)
+    def log(self, update: Value, which: str, value: dict[str, Any]) -> None:
         update[which] = {
             "value": value,
             "present": list(value),
             "alarm": {"severity": 0, "status": 0, "message": ""},
             "timeStamp": now_stamp(),
         }
-        pv.post(update)
 
     def stop(self) -> None:
         self.server.stop()
