@@ -208,18 +208,17 @@ def timed(
 ) -> tuple[list[float], list[list[float]]]:
     """Each of ``funcs`` timed ``ops`` times (after 20 warm-ups) in short
     rounds of ``per_round`` calls each, the funcs taking turns in every
-    round (which goes first rotates): ``(medians, ratios)``, the median
-    seconds of each over all its calls, and for each func after the second,
-    and the first, its per-round ratios to the second (the bare server): in
-    each round, its median over the second's. A round is a fraction of a
-    second, so a change of the machine's load (shared here) weighs on both
-    sides of a round's ratio alike; the median of the per-round ratios,
-    with their quartiles, says how sure the figure is."""
+    round (which goes first rotates): ``(medians, rounds)``, the median
+    seconds of each over all its calls, and for each round the median of
+    each func's calls in it. A round is a fraction of a second, so a change
+    of the machine's load (shared here) weighs on every func of a round
+    alike: a ratio of two funcs is best read as the median of its per-round
+    ratios (:func:`round_ratios`), their quartiles saying how sure it is."""
     for _ in range(20):
         for func in funcs:
             func()
     times: list[list[float]] = [[] for _ in funcs]
-    ratios: list[list[float]] = [[] for _ in funcs]
+    rounds: list[list[float]] = []
     for n in range(max(1, ops // per_round)):
         medians = [0.0] * len(funcs)
         for i in range(len(funcs)):
@@ -231,9 +230,13 @@ def timed(
                 out.append(time.perf_counter() - t0)
             times[k] += out
             medians[k] = statistics.median(out)
-        for k, median in enumerate(medians):
-            ratios[k].append(median / medians[1])
-    return [statistics.median(t) for t in times], ratios
+        rounds.append(medians)
+    return [statistics.median(t) for t in times], rounds
+
+
+def round_ratios(rounds: list[list[float]], a: int, b: int) -> list[float]:
+    """Per round, func ``a``'s median over func ``b``'s."""
+    return [r[a] / r[b] for r in rounds]
 
 
 def spread(ratios: list[float]) -> tuple[float, float, float]:
@@ -559,8 +562,8 @@ def main(ops: int = 600, load: bool = True, per_round: int = 10) -> None:
                 funcs = [
                     lambda c=c, n=n: c.get(n, timeout=5) for c, n in zip((m, b), names)
                 ]
-            (fm, fb, *fl), ratios = timed(funcs, ops, per_round)
-            ratio, q1, q3 = spread(ratios[0])
+            (fm, fb, *fl), rounds = timed(funcs, ops, per_round)
+            ratio, q1, q3 = spread(round_ratios(rounds, 0, 1))
             lines.append(
                 row(
                     case,
@@ -574,10 +577,17 @@ def main(ops: int = 600, load: bool = True, per_round: int = 10) -> None:
             )
             if fl:
                 case = "  bare, answered on an asyncio loop"
-                ratio, q1, q3 = spread(ratios[2])
+                ratio, q1, q3 = spread(round_ratios(rounds, 2, 1))
                 lines.append(
                     f"{case:<{WIDTH}}{fl[0] * 1e3:>10.4g}{fb * 1e3:>10.4g}"
                     f"{ratio:>8.2f}  {'(the floor)':<16}-       "
+                    f" (rounds' middle half: {q1:.2f}-{q3:.2f})"
+                )
+                case = "  malcolm over the floor"
+                ratio, q1, q3 = spread(round_ratios(rounds, 0, 2))
+                lines.append(
+                    f"{case:<{WIDTH}}{fm * 1e3:>10.4g}{fl[0] * 1e3:>10.4g}"
+                    f"{ratio:>8.2f}  {'(its own work)':<16}-       "
                     f" (rounds' middle half: {q1:.2f}-{q3:.2f})"
                 )
         (im, rm), (ib, rb) = monitor_rates(
