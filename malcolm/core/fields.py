@@ -215,6 +215,8 @@ class MethodLog:
 
 #: Alarm.ok as plain data, copied for each log that has it (most)
 _OK_ALARM = Alarm.ok.to_dict()
+_ALARM_OK = Alarm.ok
+_LOG_TYPEID = MethodLog.typeid
 
 
 def _log_dict(
@@ -243,7 +245,18 @@ def _new_log(value: dict[str, Any], alarm: Alarm) -> tuple[MethodLog, dict[str, 
     present = list(value)
     log = object.__new__(MethodLog)
     log.__dict__.update(value=value, present=present, alarm=alarm, timeStamp=stamp)
-    return log, _log_dict(value, present, alarm, stamp_dict)
+    # _log_dict(value, present, alarm, stamp_dict), in line
+    if type(value) is dict and _PLAIN.issuperset(map(type, value.values())):
+        data = dict(value)  # plain() of scalars (most arguments), in C
+    else:
+        data = plain(value)
+    return log, {
+        "typeid": _LOG_TYPEID,
+        "value": data,
+        "present": list(present),
+        "alarm": dict(_OK_ALARM) if alarm is _ALARM_OK else alarm.to_dict(),
+        "timeStamp": stamp_dict,
+    }
 
 
 class Method(Field):
@@ -267,7 +280,15 @@ class Method(Field):
         self.took = MethodLog()
         self.returned = MethodLog()
 
-    def set_took(self, args: Mapping[str, Any]) -> None:
+    def set_took(
+        self,
+        args: Mapping[str, Any],
+        hold: Callable[[str, Change, list[str]], None] | None = None,
+    ) -> None:
+        """Log the arguments of a call beginning and publish them; ``hold``
+        (the block's process's :meth:`~malcolm.core.Process.hold`): published
+        through it, to go with this method's returned if nothing else is
+        published first."""
         # on the loop (the common case) checked in line, as set_value does:
         # once per call of every method
         block = self.block
@@ -277,7 +298,10 @@ class Method(Field):
                 return
         self.took, data = _new_log(dict(args), Alarm.ok)
         if block is not None:
-            block.notify([[[self.name, "took"], data]])
+            if hold is None:
+                block.notify([[[self.name, "took"], data]])
+            else:
+                hold(block.mri, [[self.name, "took"], data], [self.name, "returned"])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
         block = self.block

@@ -125,6 +125,8 @@ class Process:
         # (subscription, payload, the callback of it that gets the payload)
         self._queue: deque[tuple[Subscription, Any, Callback]] = deque()
         self._delivering = False
+        # a call's took kept back (see hold): (mri, change, the returned's path)
+        self._held: tuple[str, Change, list[str]] | None = None
         self._hosting_watchers: list[Callable[[], None]] = []
         self.loop: asyncio.AbstractEventLoop | None = None
         self.started = False
@@ -376,7 +378,33 @@ class Process:
                 out.append([[], value] if exists else [[]])
         return out
 
+    def hold(self, mri: str, change: Change, until: list[str]) -> None:
+        """Publish ``change`` of block ``mri`` a little later: with the
+        block's next change if that is the one change at ``until``, as one
+        batch (``change`` first), else alone just before any other change of
+        any block is published, or at :meth:`release`. So a call's took and
+        returned, when its method does not wait, reach each subscriber as
+        one batch, and nothing published meanwhile is seen before the took.
+        On the loop; one change is held at a time (a new one releases it)."""
+        if self._held is not None:
+            self.release()
+        self._held = (mri, change, until)
+
+    def release(self) -> None:
+        """Publish the change :meth:`hold` keeps back, if any, now."""
+        held = self._held
+        if held is not None:
+            self._held = None
+            self._on_changes(held[0], [held[1]])
+
     def _on_changes(self, mri: str, changes: list[Change]) -> None:
+        if self._held is not None:  # a call's took goes first (see hold)
+            held = self._held
+            self._held = None
+            if held[0] == mri and len(changes) == 1 and changes[0][0] == held[2]:
+                changes = [held[1], changes[0]]
+            else:
+                self._on_changes(held[0], [held[1]])
         subs = self._subs.get(mri)
         if not subs:
             return  # nothing queued: an outer _flush (if any) has the rest
