@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from .block import Block
 from .errors import NotFoundError
-from .fields import Change
+from .fields import Change, plain_changes
 from .threads import LoopOwner, call_threadsafe
 
 if TYPE_CHECKING:
@@ -310,6 +310,10 @@ class Process:
         itself or a parent replaced or deleted) goes to ``callback`` as
         without ``below``. (For a subscriber that follows every change of a
         field, such as a pvAccess channel: no copy of every change's path.)
+        A method's took or returned reaches ``below`` as the block published
+        it: the :class:`~malcolm.core.MethodLog` itself when its values are
+        all scalars (see ``fields._new_log``); every other callback gets
+        plain data (its ``to_dict()``).
         """
         if isinstance(path, str) or not path:
             raise NotFoundError(f"subscribe needs a path [mri, ...], got {path!r}")
@@ -409,6 +413,10 @@ class Process:
         if not subs:
             return  # nothing queued: an outer _flush (if any) has the rest
         queue = self._queue
+        # the changes as plain data, made for the first subscriber that is
+        # not given them as they are (a method's log is published as a
+        # MethodLog, see fields._new_log)
+        plain: list[Change] | None = None
         # no copy of subs: nothing below changes them (callbacks run in _flush)
         for sub in subs:
             below = sub.below
@@ -448,7 +456,9 @@ class Process:
                         if touching:
                             queue.append((sub, touching, below))
                         continue
-            relative = self._relative(sub, changes)
+            if plain is None:
+                plain = plain_changes(changes)
+            relative = self._relative(sub, plain)
             if relative:
                 payload = relative if sub.delta else self._get_or_none(sub.path)[1]
                 queue.append((sub, payload, sub.callback))
