@@ -402,11 +402,15 @@ class Process:
             self._on_changes(held[0], [held[1]])
 
     def _on_changes(self, mri: str, changes: list[Change]) -> None:
-        if self._held is not None:  # a call's took goes first (see hold)
-            held = self._held
+        # the field a call's took and returned (both below it) are of, when
+        # they go as one batch
+        merged: str | None = None
+        held = self._held
+        if held is not None:  # a call's took goes first (see hold)
             self._held = None
             if held[0] == mri and len(changes) == 1 and changes[0][0] == held[2]:
                 changes = [held[1], changes[0]]
+                merged = held[2][0]
             else:
                 self._on_changes(held[0], [held[1]])
         subs = self._subs.get(mri)
@@ -423,6 +427,10 @@ class Process:
             if below is not None:
                 field = sub.field
                 if field is not None:
+                    if merged is not None:  # a took and returned: below merged
+                        if field == merged:
+                            queue.append((sub, changes, below))
+                        continue
                     # a field's subscriber (the common case), _below in line:
                     # changes all below the field go as they are, none: skip
                     hit = other = False
