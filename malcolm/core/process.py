@@ -404,14 +404,16 @@ class Process:
     def _on_changes(self, mri: str, changes: list[Change]) -> None:
         # the field a call's took and returned (both below it) are of, when
         # they go as one batch
-        merged: str | None = None
-        held = self._held
-        if held is not None:  # a call's took goes first (see hold)
+        if self._held is None:
+            merged: str | None = None
+        else:  # a call's took goes first (see hold)
+            held = self._held
             self._held = None
             if held[0] == mri and len(changes) == 1 and changes[0][0] == held[2]:
                 changes = [held[1], changes[0]]
                 merged = held[2][0]
             else:
+                merged = None
                 self._on_changes(held[0], [held[1]])
         subs = self._subs.get(mri)
         if not subs:
