@@ -402,19 +402,13 @@ class Process:
             self._on_changes(held[0], [held[1]])
 
     def _on_changes(self, mri: str, changes: list[Change]) -> None:
-        # the field a call's took and returned (both below it) are of, when
-        # they go as one batch
-        if self._held is None:
-            merged: str | None = None
-        else:  # a call's took goes first (see hold)
+        if self._held is not None:  # a call's took goes first (see hold)
             held = self._held
             self._held = None
             if held[0] == mri and len(changes) == 1 and changes[0][0] == held[2]:
-                changes = [held[1], changes[0]]
-                merged = held[2][0]
-            else:
-                merged = None
-                self._on_changes(held[0], [held[1]])
+                self._on_logs(mri, [held[1], changes[0]], held[2][0])
+                return
+            self._on_changes(held[0], [held[1]])
         subs = self._subs.get(mri)
         if not subs:
             return  # nothing queued: an outer _flush (if any) has the rest
@@ -429,10 +423,6 @@ class Process:
             if below is not None:
                 field = sub.field
                 if field is not None:
-                    if merged is not None:  # a took and returned: below merged
-                        if field == merged:
-                            queue.append((sub, changes, below))
-                        continue
                     # a field's subscriber (the common case), _below in line:
                     # changes all below the field go as they are, none: skip
                     hit = other = False
@@ -466,6 +456,39 @@ class Process:
                         if touching:
                             queue.append((sub, touching, below))
                         continue
+            if plain is None:
+                plain = plain_changes(changes)
+            relative = self._relative(sub, plain)
+            if relative:
+                payload = relative if sub.delta else self._get_or_none(sub.path)[1]
+                queue.append((sub, payload, sub.callback))
+        self._flush()
+
+    def _on_logs(self, mri: str, changes: list[Change], name: str) -> None:
+        """:meth:`_on_changes` of a call's took and returned as one batch
+        (``changes``, both below field ``name``, neither replacing it): a
+        field's ``below`` subscriber gets them if it is ``name``'s, with no
+        test of each change's path, a block's as they are; the others as
+        :meth:`_on_changes` gives them."""
+        subs = self._subs.get(mri)
+        if not subs:
+            return
+        queue = self._queue
+        plain: list[Change] | None = None  # (as in _on_changes)
+        for sub in subs:
+            below = sub.below
+            if below is not None:
+                field = sub.field
+                if field is not None:
+                    if field == name:
+                        queue.append((sub, changes, below))
+                    continue
+                rest = sub.rest
+                touching = _below(rest, changes) if rest else changes
+                if touching is not None:  # (never None: nothing is replaced)
+                    if touching:
+                        queue.append((sub, touching, below))
+                    continue
             if plain is None:
                 plain = plain_changes(changes)
             relative = self._relative(sub, plain)
