@@ -119,12 +119,21 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
         self, phase: str, device: Device | None = None
     ) -> dict[str, Any]:
         device = device or self.device
-        if phase == self.model.phase_for("validate"):
+        if phase == self._validate_phase():
             return await self._validate_rounds(phase, device)
         if self.role() == "running":
             hooks = self._tracked(self.hooks_of(phase))
             return await self.run_hooks(phase, hooks, device)
         return await super().run_phase(phase, device)
+
+    def _validate_phase(self) -> str | None:
+        """The model's phase with the validate role (looked up once per
+        model: a model is read-only)."""
+        kept = self.__dict__.get("_validate_phase_of")
+        if kept is None or kept[0] is not self.model:
+            kept = (self.model, self.model.phase_for("validate"))
+            self.__dict__["_validate_phase_of"] = kept
+        return kept[1]
 
     async def _validate_rounds(self, phase: str, device: Device) -> dict[str, Any]:
         """Run the validate phase until no part changes the parameters; not
@@ -223,7 +232,7 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
         async def validate() -> dict[str, Any]:
             # on a device of its own: validating must not touch the armed scan
             device = self._device_for(params, first)
-            phase = self.model.phase_for("validate")
+            phase = self._validate_phase()
             results: dict[str, Any] = {}
             if phase is not None:
                 results = await self.run_phase(phase, device)
