@@ -12,6 +12,7 @@ import time
 from typing import Any
 
 import pytest
+from p4p import Type, Value
 
 from malcolm.io.pva.ops import OpRunner, start_op
 
@@ -585,3 +586,49 @@ def test_a_method_channel_answers_as_result_value_types_it_each_call(served):  #
     assert memo[0] is not returns and memo[0]["required"] == []
     with pytest.raises(RuntimeError, match="BadValueError"):
         ctx.rpc("HI.greet", Value(Type([("name", "as")]), {"name": ["x"]}), timeout=5)
+
+
+def test_a_calls_logs_taken_as_they_are_reach_the_channels_data_as_plain_data(
+    served,  # noqa: F811
+):
+    """The fast path takes a method's took and returned as the core's
+    MethodLogs; the channel's data, when read, holds their plain data (the
+    process's to_dict), for the block's and the method's channels, and a
+    reshape after them (the general path) builds from that data."""
+    from malcolm.core import Attribute, MethodLog, NumberMeta
+
+    tp, process, server, ctx = served
+    sub = monitor(ctx, "FIRST", lambda _value: None)
+    try:
+        ctx.get("FIRST", timeout=5)
+        ctx.get("FIRST.zero", timeout=5)
+        chans = [server._channels["FIRST"], server._channels["FIRST.zero"]]
+        for _ in range(2):
+            ctx.rpc("FIRST.zero", Value(Type([]), {}), timeout=5)
+
+        def check() -> None:
+            for chan in chans:
+                assert any(type(v) is MethodLog for v in chan._pending.values())
+                data = chan.data
+                method = data["zero"] if chan is chans[0] else data
+                want = process.get(["FIRST", "zero"])
+                for log in ("took", "returned"):
+                    assert method[log] == want[log]
+                    assert type(method[log]) is dict, log
+                assert not chan._pending
+
+        process.call_threadsafe(check).result(5)
+        ctx.rpc("FIRST.zero", Value(Type([]), {}), timeout=5)
+        block = process.get_block("FIRST")
+        process.call_threadsafe(block.add, Attribute("extra", NumberMeta("int32")))
+        deadline = time.monotonic() + 10
+        while "extra" not in (whole := ctx.get("FIRST", timeout=5)).keys():
+            assert time.monotonic() < deadline
+        took = process.call_threadsafe(process.get, ["FIRST", "zero", "took"]).result(5)
+        stamp = took["timeStamp"]
+        assert whole["zero.took.timeStamp.nanoseconds"] == stamp["nanoseconds"]
+        assert (
+            whole["zero.took.timeStamp.secondsPastEpoch"] == stamp["secondsPastEpoch"]
+        )
+    finally:
+        sub.close()

@@ -191,3 +191,45 @@ def test_a_method_cancelled_while_it_waits_is_cancelled_inside():
         assert _paths(seen) == [("A", [("slow", "took")])]  # no returned
 
     asyncio.run(main())
+
+
+def test_a_batch_of_took_and_returned_reaches_each_kind_of_subscriber():
+    """The one batch of a call that does not wait goes to a ``below``
+    subscriber of its method (as the block gave it: its logs as MethodLogs)
+    and of its block, not to one of another field; a subscriber of a path
+    below the method, or a plain callback, gets it relative and plain."""
+
+    async def main() -> None:
+        a, _, _ = await _two()
+        process = a.process
+        assert process is not None
+        got: dict[str, list[Any]] = {}
+
+        def sub(path: list[str], below: bool) -> None:
+            name = ".".join(path) + (" below" if below else "")
+            seen = got.setdefault(name, [])
+            callback = seen.append
+            process.subscribe(path, callback, below=callback if below else None)
+            seen.clear()
+
+        for path in (["A", "quick"], ["A", "level"], ["A"]):
+            sub(path, True)
+        sub(["A", "quick"], False)
+        sub(["A", "quick", "took"], False)
+        await a.call("quick", {"x": 3.0})
+        method = a.block.quick
+        ((took, returned),) = got["A.quick below"]
+        assert took == [["quick", "took"], method.took]
+        assert returned == [["quick", "returned"], method.returned]
+        assert got["A below"] == got["A.quick below"]
+        assert got["A.level below"] == []
+        assert got["A.quick"] == [
+            [
+                [["took"], method.took.to_dict()],
+                [["returned"], method.returned.to_dict()],
+            ]
+        ]
+        assert got["A.quick.took"] == [[[[], method.took.to_dict()]]]
+        assert method.took.value == {"x": 3.0}
+
+    asyncio.run(main())

@@ -23,6 +23,7 @@ from p4p.server.raw import SharedPV
 from p4p.server.raw import _SharedPV as _RawSharedPV
 
 from malcolm.core import NotFoundError, apply_changes
+from malcolm.core.fields import plain_changes
 
 from .channel_requests import ChannelRequests
 from .convert import assign, fits, spec_at, to_value, type_spec
@@ -78,7 +79,8 @@ class _Channel(ChannelRequests):
         """The channel's copy of its path's data, current (the changes the
         fast path only recorded are applied first)."""
         if self._pending:
-            pending = [[list(k), v] for k, v in self._pending.items()]
+            # (a MethodLog the fast path took as it is becomes its plain data)
+            pending = plain_changes([[list(k), v] for k, v in self._pending.items()])
             self._pending.clear()
             self._data = _apply_changes(self._data, pending)
         return self._data
@@ -172,6 +174,7 @@ class _Channel(ChannelRequests):
             if self._fast_ok and self._data is not None and self._apply_fast(changes):
                 return
             skip = self._skip
+            changes = plain_changes(changes)  # (a MethodLog as plain data)
             self._apply([[list(c[0][skip:]), *c[1:]] for c in changes])
         except Exception as e:  # a monitor must never stop the process
             log.exception("pva %s: %s", self.name, error_text(e))

@@ -106,13 +106,12 @@ class ChannelRequests:
             returns = self._returns(*path)
         memo = self._memo
         if (
-            type(result) is dict
-            and memo
+            memo
             and memo[0] is returns
-            and tuple(result) == memo[1]
-            and tuple(map(type, result.values())) == memo[2]
+            and type(result) is dict
+            and memo[1] == tuple(zip(result, map(type, result.values())))
         ):  # result_value's answer for these keys and types, in line
-            op.done(Value(memo[3], result))
+            op.done(Value(memo[2], result))
         else:
             op.done(result_value(result, returns, memo))
 

@@ -183,8 +183,18 @@ class OpRunner:
             task = self._stand(loop)
         context: contextvars.Context = self._context  # type: ignore[assignment]
         _enter_task(loop, task)  # type: ignore[misc]
+        # its first step: _ENDED if it returned or raised an Exception (op's
+        # error), else what _EagerStep keeps of it (the future it waits on,
+        # or a BaseException it raised)
         try:
-            first = context.run(_first_step, op, coro)
+            first = ("yield", context.run(coro.send, None))
+        except StopIteration:
+            first = _ENDED
+        except Exception as e:  # the client's error; the operation ends
+            op.done(error=error_text(e))
+            first = _ENDED
+        except BaseException as e:
+            first = ("raise", e)
         finally:
             _leave_task(loop, task)  # type: ignore[misc]
         if first is _ENDED:  # it returned (its error, if any, went to op)
@@ -223,21 +233,6 @@ class OpRunner:
 
 
 _ENDED = object()
-
-
-def _first_step(op: Any, coro: Coroutine[Any, Any, None]) -> Any:
-    """The first step of ``coro``: ``_ENDED`` if it returned or raised an
-    Exception (``op``'s error), else what :class:`_EagerStep` keeps of it
-    (the future it waits on, or a BaseException it raised)."""
-    try:
-        return ("yield", coro.send(None))
-    except StopIteration:
-        return _ENDED
-    except Exception as e:  # the client's error; the operation ends
-        op.done(error=error_text(e))
-        return _ENDED
-    except BaseException as e:
-        return ("raise", e)
 
 
 class _Slot:

@@ -116,9 +116,9 @@ def method_args(
 def result_value(result: Any, returns: Any, memo: list[Any] | None = None) -> Value:
     """A method's result as the Value an RPC returns, typed by its ``returns``
     MapMeta where it says. ``memo`` (a caller's list) is set to
-    ``[returns, keys, types, Type]`` when the result's every field is a
-    scalar of a type its field takes as it is: a result of those keys and
-    exact types, for that same ``returns`` object, is then
+    ``[returns, ((key, type), ...), Type]`` when the result's every field
+    is a scalar of a type its field takes as it is: a result of those keys
+    and exact types (in order), for that same ``returns`` object, is then
     ``Value(Type, result)`` (what this returns for it), without a call."""
     if result is None:
         result = {}
@@ -144,8 +144,11 @@ def result_value(result: Any, returns: Any, memo: list[Any] | None = None) -> Va
             type(v) in fit for v, fit in zip(result.values(), scalars)
         ):  # every field a scalar of a type it takes as it is
             if memo is not None:
-                types = tuple(map(type, result.values()))
-                memo[:] = [returns, tuple(result), types, known[2]]
+                memo[:] = [
+                    returns,
+                    tuple(zip(result, map(type, result.values()))),
+                    known[2],
+                ]
             return Value(known[2], result)
         return Value(known[2], _fill(known[1], result))
     return map_to_value(result, elements)

@@ -31,6 +31,8 @@ from typing import Any
 
 from p4p import Value
 
+from malcolm.core import MethodLog
+
 from .convert import STRUCTURE, Spec, _fill, fits
 
 __all__ = ["Setter", "compile_setter"]
@@ -62,6 +64,15 @@ def compile_setter(
     an alarm, a MethodLog), with no call per field."""
     if not isinstance(spec, tuple):
         return _leaf_setter(spec, dotted, last)
+    if spec[1] == _METHOD_LOG and not subset:
+        return _log_setter(spec, dotted, last, _struct_setter(spec, dotted, last))
+    return _struct_setter(spec, dotted, last, subset)
+
+
+def _struct_setter(
+    spec: Spec, dotted: str, last: dict[str, Any] | None, subset: bool = False
+) -> Setter:
+    """The generated setter of a structure's plain data (see compile_setter)."""
     gen = _Generator(last is not None)
     body = gen.struct(spec, dotted, subset, "data", 1)
     source = "def setter(value, data):\n" + "".join(body) + "    return True\n"
@@ -73,6 +84,90 @@ def compile_setter(
 
 
 _MISSING = object()
+
+
+def _log_setter(
+    spec: Spec, dotted: str, last: dict[str, Any] | None, general: Setter
+) -> Setter:
+    """A MethodLog's setter: given the core's :class:`MethodLog` itself (what
+    a method publishes, see ``malcolm.core.fields._new_log``), its parts are
+    set from its attributes with no plain data made: its value by the
+    value's own setter (a structure of the method's takes or returns, fewer
+    fields allowed), its ``present`` compared to what it holds, its alarm
+    passed over when it is the very one last set (an :class:`Alarm` is
+    frozen: the core's logs mostly hold ``Alarm.ok``), its timeStamp's ints
+    compared to what they hold. Leaves are marked and recorded in ``last``
+    as ``general`` (the setter of its plain data, given anything else)
+    would; a part that does not fit as it is goes to ``general`` whole."""
+    if last is None:
+
+        def unremembered(value: Value, data: Any) -> bool:
+            if type(data) is MethodLog:
+                data = data.to_dict()
+            return general(value, data)
+
+        return unremembered
+    parts = dict(spec[2])
+    prefix = f"{dotted}." if dotted else ""
+    set_args = compile_setter(parts["value"], f"{prefix}value", True, last)
+    set_alarm = compile_setter(parts["alarm"], f"{prefix}alarm", last=last)
+    where_present, where_alarm = f"{prefix}present", f"{prefix}alarm"
+    stamp = f"{prefix}timeStamp"
+    where_s, where_ns, where_tag = (
+        f"{stamp}.secondsPastEpoch",
+        f"{stamp}.nanoseconds",
+        f"{stamp}.userTag",
+    )
+    if parts["present"] != "as" or parts["timeStamp"] != (
+        "S",
+        "time_t",
+        (("secondsPastEpoch", "l"), ("nanoseconds", "i"), ("userTag", "i")),
+    ):  # not the MethodLog the core makes: its plain data, always
+
+        def other(value: Value, data: Any) -> bool:
+            if type(data) is MethodLog:
+                data = data.to_dict()
+            return general(value, data)
+
+        return other
+
+    def log_setter(value: Value, data: Any) -> bool:
+        if type(data) is not MethodLog:
+            return general(value, data)
+        if not set_args(value, data.value):
+            return False
+        present = data.present
+        if present != last.get(where_present):
+            if type(present) is not list or not all(type(x) is str for x in present):
+                return general(value, data.to_dict())
+            value[where_present] = present
+            last[where_present] = list(present)
+        alarm = data.alarm
+        if alarm is not last.get(where_alarm):
+            if not set_alarm(value, alarm.to_dict()):
+                return False
+            last[where_alarm] = alarm  # (the leaves hold it: frozen)
+        stamp = data.timeStamp
+        seconds, nanoseconds, tag = (
+            stamp.secondsPastEpoch,
+            stamp.nanoseconds,
+            stamp.userTag,
+        )
+        if seconds != last.get(where_s):
+            if type(seconds) is not int:
+                return general(value, data.to_dict())
+            value[where_s] = last[where_s] = seconds
+        if nanoseconds != last.get(where_ns):
+            if type(nanoseconds) is not int:
+                return general(value, data.to_dict())
+            value[where_ns] = last[where_ns] = nanoseconds
+        if tag != last.get(where_tag):
+            if type(tag) is not int:
+                return general(value, data.to_dict())
+            value[where_tag] = last[where_tag] = tag
+        return True
+
+    return log_setter
 
 
 def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter:
