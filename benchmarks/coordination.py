@@ -30,7 +30,7 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 from benchmarks.table import Row, median, render
-from malcolm.config.build import build_block, expand, find_definition, load_definition
+from malcolm.config.build import build_definition
 from malcolm.controllers.runnable import RunnableController
 from malcolm.core import NumberMeta, Process, StringMeta
 from malcolm.fsm import RunnableDevice
@@ -84,12 +84,12 @@ async def make_process() -> Process:
     for mri, kind in DEVICES.items():
         part = MemoryDevicePart(mri.lower(), kind)
         process.add_controller(RunnableController(f"BL:{mri}", [part]))
-    expanded = expand(
-        load_definition(find_definition("beamline.BeamlineManager")),
+    build_definition(
+        "beamline.BeamlineManager",
         {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
         mri="BL",
+        process=process,
     )
-    build_block(process, expanded)
     await process.start()
     return process
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from malcolm.config.build import build_block, expand, find_definition, load_definition
+from malcolm.config.build import build_definition
 from malcolm.controllers.runnable import RunnableController
 from malcolm.controllers.validated import Validated, same
 from malcolm.core import BadValueError, MalcolmError, NumberMeta, Process
@@ -64,12 +64,12 @@ async def make(tmp_path: Path, least: float | None = None) -> tuple[Process, dic
     for mri, fake in fakes.items():
         checks[mri] = CheckPart("check", least if mri == "DET" else None)
         process.add_controller(RunnableController(f"BL:{mri}", [fake, checks[mri]]))
-    expanded = expand(
-        load_definition(find_definition("beamline.BeamlineManager")),
+    build_definition(
+        "beamline.BeamlineManager",
         {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
         mri="BL",
+        process=process,
     )
-    build_block(process, expanded)
     await process.start()
     return process, checks
 
