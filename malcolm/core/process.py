@@ -458,10 +458,7 @@ class Process:
                         continue
             if plain is None:
                 plain = plain_changes(changes)
-            relative = self._relative(sub, plain)
-            if relative:
-                payload = relative if sub.delta else self._get_or_none(sub.path)[1]
-                queue.append((sub, payload, sub.callback))
+            self._queue_relative(sub, plain)
         self._flush()
 
     def _on_logs(self, mri: str, changes: list[Change], name: str) -> None:
@@ -491,11 +488,16 @@ class Process:
                     continue
             if plain is None:
                 plain = plain_changes(changes)
-            relative = self._relative(sub, plain)
-            if relative:
-                payload = relative if sub.delta else self._get_or_none(sub.path)[1]
-                queue.append((sub, payload, sub.callback))
+            self._queue_relative(sub, plain)
         self._flush()
+
+    def _queue_relative(self, sub: Subscription, plain: list[Change]) -> None:
+        """Queue ``sub``'s share of the plain ``changes`` (relative to its
+        path, or its whole value when it takes no deltas), if any."""
+        relative = self._relative(sub, plain)
+        if relative:
+            payload = relative if sub.delta else self._get_or_none(sub.path)[1]
+            self._queue.append((sub, payload, sub.callback))
 
     def _flush(self) -> None:
         if self._delivering:
