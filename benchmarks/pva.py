@@ -575,19 +575,16 @@ def main(ops: int = 600, load: bool = True, per_round: int = 10) -> None:
                     (q1, q3),
                 )  # fmt: skip
             )
-            if fl:
-                case = "  bare, answered on an asyncio loop"
-                ratio, q1, q3 = spread(round_ratios(rounds, 2, 1))
+            # (rows: case, its time, the time beside it, their rounds, note)
+            below = (
+                ("  bare, answered on an asyncio loop", fl[0], fb, 2, 1, "(the floor)"),
+                ("  malcolm over the floor", fm, fl[0], 0, 2, "(its own work)"),
+            ) if fl else ()  # fmt: skip
+            for case, one, other, top, under, note in below:
+                ratio, q1, q3 = spread(round_ratios(rounds, top, under))
                 lines.append(
-                    f"{case:<{WIDTH}}{fl[0] * 1e3:>10.4g}{fb * 1e3:>10.4g}"
-                    f"{ratio:>8.2f}  {'(the floor)':<16}-       "
-                    f" (rounds' middle half: {q1:.2f}-{q3:.2f})"
-                )
-                case = "  malcolm over the floor"
-                ratio, q1, q3 = spread(round_ratios(rounds, 0, 2))
-                lines.append(
-                    f"{case:<{WIDTH}}{fm * 1e3:>10.4g}{fl[0] * 1e3:>10.4g}"
-                    f"{ratio:>8.2f}  {'(its own work)':<16}-       "
+                    f"{case:<{WIDTH}}{one * 1e3:>10.4g}{other * 1e3:>10.4g}"
+                    f"{ratio:>8.2f}  {note:<16}-       "
                     f" (rounds' middle half: {q1:.2f}-{q3:.2f})"
                 )
         (im, rm), (ib, rb) = monitor_rates(
