@@ -1,7 +1,7 @@
 """Issue 9's pvAccess benchmarks: the served demo beside a bare p4p server
 doing the same, in one run on this machine, as ratios with the targets.
 
-    .venv/bin/python -m benchmarks.pva [--ops 300] [--no-load]
+    .venv/bin/python -m benchmarks.pva [--ops 600] [--per-round 10] [--no-load]
 
 Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
 
@@ -10,16 +10,22 @@ Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
   process with a SharedPV per name, values of the very same types, whose
   handlers answer in p4p's thread: a greet RPC on a channel holding the
   method's structure that, as a served call does, posts ``took`` and
-  ``returned`` there before answering; a put that checks the number and
+  ``returned`` there (one update, as the served greet, which does not
+  wait) before answering; a put that checks the number and
   posts it with a timeStamp to the field's and the block's channels.
 - the floor of the call and put ratios: the bare server again (names L.*)
   whose handlers hand the same work to the process's idle loop and answer
   there, as any server that keeps its state on an asyncio loop must: what
   the hop from p4p's thread to the loop costs, with none of malcolm's work;
-- one p4p client Context each; each figure is the median of ``--ops``
-  round trips, served and bare in alternating rounds (the machine's load
-  changes weigh on both): a method call (HELLO.greet), a put of
-  COUNTER.counter, a get of it, a get of the whole COUNTER block;
+- one p4p client Context each; ``--ops`` round trips a side of a method
+  call (HELLO.greet), a put of COUNTER.counter, a get of it, a get of the
+  whole COUNTER block, in short rounds of ``--per-round`` (10) a side
+  taking turns (see
+  ``timed``): the malcolm and bare columns are the medians of all round
+  trips, the ratio the median of the rounds' ratios (each round's median
+  over the bare server's in that round), the middle half of those ratios
+  (their quartiles) beside it: how sure the figure is on a machine whose
+  load changes from one second to the next;
 - counter increments a second seen by a monitor (the target, in the issue's
   words): the value set as fast as the server side can (on the process's
   loop; bare: a thread posting), how far the value a monitor in a process of
@@ -174,44 +180,71 @@ class Bare:
             self.do_rpc(pv, op)
 
     def do_rpc(self, pv: SharedPV, op: Any) -> None:
-        """As a served method call: its channel gets ``took`` (the arguments,
-        defaults filled) then ``returned``, each a MethodLog update."""
+        """As a served method call that does not wait: its channel gets
+        ``took`` (the arguments, defaults filled) and ``returned``, two
+        MethodLogs in one update (docs/core.md: one batch), then the answer."""
         name = op.value()["name"]
-        self.log(pv, "took", {"name": name, "sleep": 0.0})
+        update = Value(self.method_type)
+        self.log(update, "took", {"name": name, "sleep": 0.0})
         greeting = f"Hello {name}"
-        self.log(pv, "returned", {"greeting": greeting})
+        self.log(update, "returned", {"greeting": greeting})
+        pv.post(update)
         op.done(Value(self.greet_type, {"greeting": greeting}))
 
-    def log(self, pv: SharedPV, which: str, value: dict[str, Any]) -> None:
-        update = Value(self.method_type)
+    def log(self, update: Value, which: str, value: dict[str, Any]) -> None:
         update[which] = {
             "value": value,
             "present": list(value),
             "alarm": {"severity": 0, "status": 0, "message": ""},
             "timeStamp": now_stamp(),
         }
-        pv.post(update)
 
     def stop(self) -> None:
         self.server.stop()
 
 
-def timed(funcs: list[Callable[[], Any]], ops: int, rounds: int = 10) -> list[float]:
-    """Median seconds of each of ``funcs`` over ``ops`` calls each (after 20
-    warm-ups), in ``rounds`` rounds taking turns: a machine whose load
-    changes during the run (shared here) weighs on all alike."""
+def timed(
+    funcs: list[Callable[[], Any]], ops: int, per_round: int = 10
+) -> tuple[list[float], list[list[float]]]:
+    """Each of ``funcs`` timed ``ops`` times (after 20 warm-ups) in short
+    rounds of ``per_round`` calls each, the funcs taking turns in every
+    round (which goes first rotates): ``(medians, rounds)``, the median
+    seconds of each over all its calls, and for each round the median of
+    each func's calls in it. A round is a fraction of a second, so a change
+    of the machine's load (shared here) weighs on every func of a round
+    alike: a ratio of two funcs is best read as the median of its per-round
+    ratios (:func:`round_ratios`), their quartiles saying how sure it is."""
     for _ in range(20):
         for func in funcs:
             func()
     times: list[list[float]] = [[] for _ in funcs]
-    per_round = max(1, ops // rounds)
-    for _ in range(rounds):
-        for func, out in zip(funcs, times):
+    rounds: list[list[float]] = []
+    for n in range(max(1, ops // per_round)):
+        medians = [0.0] * len(funcs)
+        for i in range(len(funcs)):
+            k = (i + n) % len(funcs)  # who goes first rotates
+            func, out = funcs[k], []
             for _ in range(per_round):
                 t0 = time.perf_counter()
                 func()
                 out.append(time.perf_counter() - t0)
-    return [statistics.median(t) for t in times]
+            times[k] += out
+            medians[k] = statistics.median(out)
+        rounds.append(medians)
+    return [statistics.median(t) for t in times], rounds
+
+
+def round_ratios(rounds: list[list[float]], a: int, b: int) -> list[float]:
+    """Per round, func ``a``'s median over func ``b``'s."""
+    return [r[a] / r[b] for r in rounds]
+
+
+def spread(ratios: list[float]) -> tuple[float, float, float]:
+    """``(median, first quartile, third quartile)`` of per-round ratios."""
+    if len(ratios) < 2:
+        return ratios[0], ratios[0], ratios[0]
+    q1, median, q3 = statistics.quantiles(ratios, n=4, method="inclusive")
+    return median, q1, q3
 
 
 # the monitor of monitor_rates, in a process of its own (see monitor_rates):
@@ -455,9 +488,22 @@ def load_rss(*extra: str, runs: int = 3, clients: int = 50) -> list[float]:
     return out
 
 
-def row(case: str, malcolm: float, bare: float, target: str, ok: bool) -> str:
-    ratio = malcolm / bare if bare else float("nan")
+def row(
+    case: str,
+    malcolm: float,
+    bare: float,
+    target: str,
+    ok: bool,
+    ratio: float | None = None,
+    quartiles: tuple[float, float] | None = None,
+) -> str:
+    if ratio is None:
+        ratio = malcolm / bare if bare else float("nan")
     verdict = "ok" if ok else "MISSED"
+    if quartiles is not None:
+        verdict = (
+            f"{verdict:<8}(rounds' middle half: {quartiles[0]:.2f}-{quartiles[1]:.2f})"
+        )
     return (
         f"{case:<{WIDTH}}{malcolm:>10.4g}{bare:>10.4g}{ratio:>8.2f}"
         f"  {target:<16}{verdict}"
@@ -477,7 +523,7 @@ def serve_demo() -> tuple[Any, Any, Any, int, int]:
     return process, tp, served, udp, int(served.address.rsplit(":", 1)[1])
 
 
-def main(ops: int = 300, load: bool = True) -> None:
+def main(ops: int = 600, load: bool = True, per_round: int = 10) -> None:
     process, tp, served, udp, tcp = serve_demo()
     m = client(udp, tcp)
     greet_type = m.rpc(
@@ -516,13 +562,30 @@ def main(ops: int = 300, load: bool = True) -> None:
                 funcs = [
                     lambda c=c, n=n: c.get(n, timeout=5) for c, n in zip((m, b), names)
                 ]
-            fm, fb, *fl = timed(funcs, ops)
-            lines.append(row(case, fm * 1e3, fb * 1e3, "<= 1.2x bare", fm <= 1.2 * fb))
-            if fl:
-                case = "  bare, answered on an asyncio loop"
+            (fm, fb, *fl), rounds = timed(funcs, ops, per_round)
+            ratio, q1, q3 = spread(round_ratios(rounds, 0, 1))
+            lines.append(
+                row(
+                    case,
+                    fm * 1e3,
+                    fb * 1e3,
+                    "<= 1.2x bare",
+                    ratio <= 1.2,
+                    ratio,
+                    (q1, q3),
+                )  # fmt: skip
+            )
+            # (rows: case, its time, the time beside it, their rounds, note)
+            below = (
+                ("  bare, answered on an asyncio loop", fl[0], fb, 2, 1, "(the floor)"),
+                ("  malcolm over the floor", fm, fl[0], 0, 2, "(its own work)"),
+            ) if fl else ()  # fmt: skip
+            for case, one, other, top, under, note in below:
+                ratio, q1, q3 = spread(round_ratios(rounds, top, under))
                 lines.append(
-                    f"{case:<{WIDTH}}{fl[0] * 1e3:>10.4g}{fb * 1e3:>10.4g}"
-                    f"{fl[0] / fb:>8.2f}  {'(the floor)':<16}-"
+                    f"{case:<{WIDTH}}{one * 1e3:>10.4g}{other * 1e3:>10.4g}"
+                    f"{ratio:>8.2f}  {note:<16}-       "
+                    f" (rounds' middle half: {q1:.2f}-{q3:.2f})"
                 )
         (im, rm), (ib, rb) = monitor_rates(
             [
@@ -575,7 +638,9 @@ def main(ops: int = 300, load: bool = True) -> None:
             )
     one, five, fifteen = os.getloadavg()
     lines.append(
-        f"(ratio = malcolm / bare; machine: {os.cpu_count()} cores, load average"
+        "(ratio = malcolm / bare; of a round trip: the median of per-round"
+        f" ratios ({ops // per_round} rounds of {per_round} calls a side), the"
+        f" middle half of them beside it; machine: {os.cpu_count()} cores, load average"
         f" {one:.2f} {five:.2f} {fifteen:.2f}; reference: 7.5x bare on a method"
         " call, 2 updates per change)"
     )
@@ -584,7 +649,8 @@ def main(ops: int = 300, load: bool = True) -> None:
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ops", type=int, default=300)
+    parser.add_argument("--ops", type=int, default=600)
+    parser.add_argument("--per-round", type=int, default=10)
     parser.add_argument("--no-load", action="store_true")
     a = parser.parse_args()
-    main(a.ops, not a.no_load)
+    main(a.ops, not a.no_load, a.per_round)

@@ -1,7 +1,7 @@
 """The Python work of one served pvAccess operation, counted: a figure the
 machine's load does not move (benchmarks.pva's times do, on a shared one).
 
-    .venv/bin/python -m benchmarks.pva_cost
+    .venv/bin/python -m benchmarks.pva_cost [--functions]
 
 Run it under ``../shared/tools/isolated`` (it serves on free loopback ports).
 For a method call (HELLO.greet), a put of COUNTER.counter and a change of
@@ -13,11 +13,13 @@ server of benchmarks.pva doing the same (its handler's, or its ``set``'s).
 C work (p4p, pvxs, the interpreter's builtins) is not counted: these say
 how much Python a figure of benchmarks.pva pays, which is what this server
 can change (cold, between two client requests, each bytecode costs several
-times what it costs in a tight loop).
+times what it costs in a tight loop). ``--functions`` adds, for each row,
+the opcodes executed in each function (its own, not its callees').
 """
 
 from __future__ import annotations
 
+import collections
 import concurrent.futures
 import sys
 from collections.abc import Callable
@@ -46,9 +48,15 @@ class Op:
             raise RuntimeError(error)
 
 
-def counted(loop: Any, func: Callable[[], Any], warm: int = 50) -> tuple[int, int]:
+def counted(
+    loop: Any,
+    func: Callable[[], Any],
+    warm: int = 50,
+    by_function: collections.Counter[str] | None = None,
+) -> tuple[int, int]:
     """``(opcodes, calls)`` of one ``func()`` run as a loop callback (as the
-    hand-over runs a handler), after ``warm`` runs; the least of 5."""
+    hand-over runs a handler), after ``warm`` runs; the least of 5.
+    ``by_function`` is given the opcodes of that run by function."""
 
     def run_on_loop(target: Callable[[], Any]) -> Any:
         fut: concurrent.futures.Future[Any] = concurrent.futures.Future()
@@ -58,28 +66,37 @@ def counted(loop: Any, func: Callable[[], Any], warm: int = 50) -> tuple[int, in
     for _ in range(warm):
         run_on_loop(func)
     count = [0, 0]
+    functions: collections.Counter[str] = collections.Counter()
 
     def tracer(frame: FrameType, event: str, arg: Any) -> Any:
         frame.f_trace_opcodes = True
         if event == "opcode":
             count[0] += 1
+            code = frame.f_code
+            functions[
+                f"{code.co_qualname} ({code.co_filename.rsplit('/', 1)[-1]})"
+            ] += 1
         elif event == "call":
             count[1] += 1
         return tracer
 
-    def traced() -> tuple[int, int]:
+    def traced() -> tuple[int, int, dict[str, int]]:
         count[:] = [0, 0]
+        functions.clear()
         sys.settrace(tracer)
         try:
             func()
         finally:
             sys.settrace(None)
-        return count[0], count[1]
+        return count[0], count[1], dict(functions)
 
-    return min(run_on_loop(traced) for _ in range(5))
+    opcodes, calls, least = min(run_on_loop(traced) for _ in range(5))
+    if by_function is not None:
+        by_function.update(least)
+    return opcodes, calls
 
 
-def main() -> None:
+def main(functions: bool = False) -> None:
     process, tp, served, udp, tcp = serve_demo()
     loop = process.loop
     ctx = client(udp, tcp)
@@ -125,12 +142,19 @@ def main() -> None:
             f"{'Python work per operation':<{WIDTH}}{'malcolm':>10}{'bare':>10}"
             f"{'ratio':>8}  (not a target)"
         ]
+        detail: list[str] = []
         for case, mine, theirs in rows:
-            (mo, mc), (bo, bc) = counted(loop, mine), counted(loop, theirs)
+            per: collections.Counter[str] = collections.Counter()
+            (mo, mc), (bo, bc) = (
+                counted(loop, mine, by_function=per),
+                counted(loop, theirs),
+            )
             for what, m, b in (("opcodes", mo, bo), ("calls", mc, bc)):
                 name = f"{case}: {what}"
                 lines.append(f"{name:<{WIDTH}}{m:>10}{b:>10}{m / b:>8.2f}")
-        print("\n".join(lines))
+            detail.append(f"\n{case}, malcolm's opcodes by function:")
+            detail += [f"{n:>6}  {where}" for where, n in per.most_common()]
+        print("\n".join(lines + (detail if functions else [])))
     finally:
         ctx.close()
         bare.stop()
@@ -139,4 +163,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(functions="--functions" in sys.argv[1:])

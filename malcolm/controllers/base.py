@@ -18,8 +18,8 @@ from __future__ import annotations
 import asyncio
 import functools
 import logging
-from collections.abc import Callable, Mapping, Sequence
-from types import CoroutineType
+from collections.abc import Callable, Coroutine, Generator, Mapping, Sequence
+from types import CoroutineType, coroutine
 from typing import Any, ClassVar
 
 from malcolm.core import (
@@ -67,6 +67,30 @@ def builtin_phase_roles() -> dict[str, str]:
             if info.role is not None:
                 roles.setdefault(phase, info.role)
     return roles
+
+
+@coroutine
+def _rest(coro: Coroutine[Any, Any, Any], first: Any) -> Generator[Any, Any, Any]:
+    """Await ``coro`` from its second step on, ``first`` being what its
+    first step (taken by :meth:`Controller.call`) yielded: each send and
+    throw of the awaiting Task goes on to ``coro``; its return is this."""
+    yielded = first
+    while True:
+        try:
+            sent = yield yielded
+        except GeneratorExit:
+            coro.close()
+            raise
+        except BaseException as e:  # thrown in: a cancellation, mostly
+            try:
+                yielded = coro.throw(e)
+            except StopIteration as done:
+                return done.value
+        else:
+            try:
+                yielded = coro.send(sent)
+            except StopIteration as done:
+                return done.value
 
 
 class Controller(Interpreter, Operations, Health):
@@ -260,7 +284,10 @@ class Controller(Interpreter, Operations, Health):
         allowed = self.model.methods.get(name)  # check_allowed's test, in line
         if allowed is not None and self._state not in allowed:
             self.check_allowed(name)  # raises, naming the state
-        method.set_took(args)
+        # the took held back: with the returned in one batch if the method
+        # does not wait and nothing else is published meanwhile (Process.hold)
+        process = self.process
+        method.set_took(args, process.hold if process is not None else None)
         handler = method.handler
         try:
             result = handler(**args) if handler else None
@@ -268,9 +295,20 @@ class Controller(Interpreter, Operations, Health):
             if type(result) is CoroutineType or (
                 result is not None and asyncio.iscoroutine(result)
             ):
-                result = await result
+                try:  # its first step now: one that does not wait ends here
+                    step = result.send(None)
+                except StopIteration as done:
+                    result = done.value
+                else:  # it waits: its took is published first
+                    if process is not None:
+                        process.release()
+                    result = await _rest(result, step)
         except Exception as e:
             method.set_returned({}, Alarm.major(describe(e)))
+            raise
+        except BaseException:
+            if process is not None:
+                process.release()
             raise
         if type(result) is dict or isinstance(result, Mapping):
             method.set_returned(result, Alarm.ok)

@@ -18,7 +18,7 @@ from malcolm.fsm import Model, Transition
 from malcolm.hooks import Hook, Task, runner
 
 from .device import Device
-from .writers import writing_as
+from .writers import WRITER
 
 if TYPE_CHECKING:
     from malcolm.core import Block
@@ -159,11 +159,15 @@ class Interpreter:
             device.part_info[phase] = {}
             return {}
         # the hooks (and the tasks and threads they start) inherit this
-        # context: their puts carry this block's mri (see writers.py)
-        with writing_as(self.mri):
+        # context: their puts carry this block's mri (see writers.py); set
+        # and reset in place (writing_as's, without a context manager)
+        token = WRITER.set(self.mri)
+        try:
             results = await runner.run_phase(
                 phase, hooks, self.tasks, device, self.timeout_of(phase)
             )
+        finally:
+            WRITER.reset(token)
         device.part_info[phase] = results
         return results
 

@@ -115,11 +115,21 @@ class Operations:
                 )
         op = asyncio.ensure_future(self._guarded(name, coro))
         self._op, self._op_name = op, name
+        # wait for it without being it: the caller's cancellation must not
+        # cancel the operation (asyncio.wait's way, with one future)
+        ended = op.get_loop().create_future()
+
+        def end(_: asyncio.Future[Any]) -> None:
+            if not ended.done():
+                ended.set_result(None)
+
+        op.add_done_callback(end)
         try:
-            await asyncio.wait({op})
+            await ended
         except asyncio.CancelledError:
             # the caller went away; the operation goes on: its outcome is
             # the block's state, and nobody is left to read its error
+            op.remove_done_callback(end)
             op.add_done_callback(_retrieve)
             raise
         return self.outcome(op, name)

@@ -23,6 +23,7 @@ from .device import Device
 from .manager import ManagerController
 from .pausing import PauseAndSeek
 from .scan_steps import ScanPlan, plan_scan_off_loop
+from .validated import CALLER, Validated
 
 if TYPE_CHECKING:
     from malcolm.scan import ScanPoints
@@ -63,6 +64,11 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
         self._run_inner: asyncio.Task[Any] | None = None
         self._resume: asyncio.Future[bool] | None = None
         self._seek_op: asyncio.Task[Any] | None = None
+        # the last validate() that gave its arguments back unchanged inside
+        # a manager's operation, and the device of a configure that needs
+        # no Validate phase (validated.py)
+        self._validated: Validated | None = None
+        self._prevalidated: tuple[Device, dict[str, Any]] | None = None
         # progress of the run in progress: where it started, what each part
         # reported, and how many hooks of each part are still working
         self._run_start = 0
@@ -113,15 +119,32 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
         self, phase: str, device: Device | None = None
     ) -> dict[str, Any]:
         device = device or self.device
-        if phase == self.model.phase_for("validate"):
+        if phase == self._validate_phase():
             return await self._validate_rounds(phase, device)
         if self.role() == "running":
             hooks = self._tracked(self.hooks_of(phase))
             return await self.run_hooks(phase, hooks, device)
         return await super().run_phase(phase, device)
 
+    def _validate_phase(self) -> str | None:
+        """The model's phase with the validate role (looked up once per
+        model: a model is read-only)."""
+        kept = self.__dict__.get("_validate_phase_of")
+        if kept is None or kept[0] is not self.model:
+            kept = (self.model, self.model.phase_for("validate"))
+            self.__dict__["_validate_phase_of"] = kept
+        return kept[1]
+
     async def _validate_rounds(self, phase: str, device: Device) -> dict[str, Any]:
-        """Run the validate phase until no part changes the parameters."""
+        """Run the validate phase until no part changes the parameters; not
+        at all for a configure whose arguments this block's validate() gave
+        back unchanged inside the same operation of its caller (what the
+        phase returned then is what it returns)."""
+        prevalidated = self._prevalidated
+        if prevalidated is not None and prevalidated[0] is device:
+            self._prevalidated = None
+            device.part_info[phase] = prevalidated[1]
+            return prevalidated[1]
         for _ in range(MAX_VALIDATE_ROUNDS):
             results = await super().run_phase(phase, device)
             changed = {}
@@ -204,18 +227,40 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
         live), once, before anything runs; a scan that cannot be done is
         refused and changes nothing."""
         first = await self._plan(params)
+        caller = CALLER.get()
 
         async def validate() -> dict[str, Any]:
             # on a device of its own: validating must not touch the armed scan
             device = self._device_for(params, first)
-            phase = self.model.phase_for("validate")
+            phase = self._validate_phase()
+            results: dict[str, Any] = {}
             if phase is not None:
-                await self.run_phase(phase, device)
+                results = await self.run_phase(phase, device)
             if self._tweaked(device.params, params):
                 await self._plan(device.params)
+            elif caller is not None:  # a configure in the same call need not
+                self._validated = Validated(caller, dict(params), results)
             return dict(device.params)
 
-        return await self.operation("validate", validate())
+        return await self._planned_operation("validate", validate(), params, first)
+
+    async def _planned_operation(
+        self, name: str, coro: Any, params: Mapping[str, Any], plan: ScanPlan
+    ) -> Any:
+        """``operation(name, coro)``, in which the children the hooks call
+        take the points of ``plan`` for the same generator object
+        (`malcolm.scan.planned`) and know this operation as their caller's
+        (validated.py)."""
+        # a plan was made: malcolm.scan is loaded (never at start-up)
+        from malcolm.scan.planned import PLANNED, set_planned
+
+        planned = set_planned(params.get("generator"), plan.points)
+        caller = CALLER.set(object())
+        try:
+            return await self.operation(name, coro)
+        finally:
+            CALLER.reset(caller)
+            PLANNED.reset(planned)
 
     async def _plan(self, params: Mapping[str, Any]) -> ScanPlan:
         """The scan ``params`` describe, planned off the loop (BadValueError
@@ -245,6 +290,9 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
         and changes nothing."""
         first = await self._plan(params)  # BadValueError: nothing changed
         device = self._device_for(params, first)
+        validated, self._validated = self._validated, None
+        if validated is not None and validated.holds_for(CALLER.get(), params):
+            self._prevalidated = (device, validated.results)
 
         async def adopt() -> None:
             # the parameters as the parts validated them; still resting
@@ -265,7 +313,7 @@ class RunnableController(PauseAndSeek, ConfigureArgs, ManagerController):
                 raise
             await self.settle()
 
-        await self.operation("configure", configure())
+        await self._planned_operation("configure", configure(), params, first)
 
     async def do_run(self) -> None:
         """Do the next run of steps; ends Armed, or Finished after the last."""

@@ -62,9 +62,13 @@ def plan_scan(
     """Check configure parameters: BadValueError naming what is wrong."""
     from malcolm.scan import scan_points
     from malcolm.scan.errors import GeneratorError
+    from malcolm.scan.planned import planned_points
 
     try:
-        points = scan_points(params["generator"])
+        generator = params["generator"]
+        # the very object the operation in progress planned: its points
+        planned = planned_points(generator)
+        points = planned.copy() if planned is not None else scan_points(generator)
         axes = params.get("axesToMove")
         if axes is None:
             # the axes the block can move together that this scan has (as
@@ -86,7 +90,8 @@ def plan_scan(
 
 def plans_on_loop(params: Mapping[str, Any]) -> bool:
     """Whether planning ``params`` is cheap enough to do on the loop: the
-    generator is ScanPoints already, or the scan is cheap to build
+    generator is ScanPoints already or the very object the operation in
+    progress planned (`malcolm.scan.planned`), or the scan is cheap to build
     (`malcolm.scan.cheap_to_build`, breakpoints counted as data) and the
     modules that build it are loaded (the first scan imports numpy and
     them, in the worker thread)."""
@@ -94,7 +99,11 @@ def plans_on_loop(params: Mapping[str, Any]) -> bool:
     if is_scan_points(generator):
         return True
     if "malcolm.scan.load" not in sys.modules:
-        return False
+        return False  # nothing planned yet
+    from malcolm.scan.planned import planned_points
+
+    if planned_points(generator) is not None:
+        return True
     from malcolm.scan.cost import CHEAP_BUILD_COST, DATA_ITEM_COST, build_cost
 
     try:

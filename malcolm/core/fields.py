@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from threading import get_ident
+from time import time_ns
 from typing import TYPE_CHECKING, Any
 
 from .alarm import Alarm
@@ -235,15 +236,34 @@ def _log_dict(
     }
 
 
-def _new_log(value: dict[str, Any], alarm: Alarm) -> tuple[MethodLog, dict[str, Any]]:
-    """A MethodLog of ``value`` (all its keys present) with ``alarm``, stamped
-    now, and its plain data (its to_dict): twice per call of every method,
-    so made without the dataclass's ``__init__``."""
-    stamp, stamp_dict = TimeStamp.now_and_dict()
-    present = list(value)
+def _new_log(value: dict[str, Any], alarm: Alarm) -> tuple[MethodLog, Any]:
+    """A MethodLog of ``value`` (a dict of its own: all its keys present)
+    with ``alarm``, stamped now, and what a change publishes of it: the log
+    itself when its arguments are all scalars (most; a subscriber that wants
+    plain data gets its ``to_dict()``, see :func:`plain_changes`), else its
+    plain data, made now (a list the method keeps may change later). Twice
+    per call of every method, so made without the dataclasses' ``__init__``."""
+    seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
+    stamp = object.__new__(TimeStamp)  # TimeStamp.now(), in line
+    stamp.__dict__.update(secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0)
     log = object.__new__(MethodLog)
-    log.__dict__.update(value=value, present=present, alarm=alarm, timeStamp=stamp)
-    return log, _log_dict(value, present, alarm, stamp_dict)
+    log.__dict__.update(value=value, present=list(value), alarm=alarm, timeStamp=stamp)
+    if _PLAIN.issuperset(map(type, value.values())):
+        return log, log
+    return log, _log_dict(value, list(value), alarm, stamp.to_dict())
+
+
+def plain_changes(changes: list[Change]) -> list[Change]:
+    """``changes`` as plain data: a MethodLog a method published as it is
+    (see :func:`_new_log`) replaced by its ``to_dict()``; ``changes`` itself
+    if none is (a new list otherwise, the others' changes as they are)."""
+    for change in changes:
+        if len(change) == 2 and type(change[1]) is MethodLog:
+            return [
+                [c[0], c[1].to_dict()] if len(c) == 2 and type(c[1]) is MethodLog else c
+                for c in changes
+            ]
+    return changes
 
 
 class Method(Field):
@@ -267,7 +287,15 @@ class Method(Field):
         self.took = MethodLog()
         self.returned = MethodLog()
 
-    def set_took(self, args: Mapping[str, Any]) -> None:
+    def set_took(
+        self,
+        args: Mapping[str, Any],
+        hold: Callable[[str, Change, list[str]], None] | None = None,
+    ) -> None:
+        """Log the arguments of a call beginning and publish them; ``hold``
+        (the block's process's :meth:`~malcolm.core.Process.hold`): published
+        through it, to go with this method's returned if nothing else is
+        published first."""
         # on the loop (the common case) checked in line, as set_value does:
         # once per call of every method
         block = self.block
@@ -277,7 +305,10 @@ class Method(Field):
                 return
         self.took, data = _new_log(dict(args), Alarm.ok)
         if block is not None:
-            block.notify([[[self.name, "took"], data]])
+            if hold is None:
+                block.notify([[[self.name, "took"], data]])
+            else:
+                hold(block.mri, [[self.name, "took"], data], [self.name, "returned"])
 
     def set_returned(self, value: Mapping[str, Any] | None, alarm: Alarm) -> None:
         block = self.block

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from .block import Block
 from .errors import NotFoundError
-from .fields import Change
+from .fields import Change, plain_changes
 from .threads import LoopOwner, call_threadsafe
 
 if TYPE_CHECKING:
@@ -125,6 +125,8 @@ class Process:
         # (subscription, payload, the callback of it that gets the payload)
         self._queue: deque[tuple[Subscription, Any, Callback]] = deque()
         self._delivering = False
+        # a call's took kept back (see hold): (mri, change, the returned's path)
+        self._held: tuple[str, Change, list[str]] | None = None
         self._hosting_watchers: list[Callable[[], None]] = []
         self.loop: asyncio.AbstractEventLoop | None = None
         self.started = False
@@ -308,6 +310,10 @@ class Process:
         itself or a parent replaced or deleted) goes to ``callback`` as
         without ``below``. (For a subscriber that follows every change of a
         field, such as a pvAccess channel: no copy of every change's path.)
+        A method's took or returned reaches ``below`` as the block published
+        it: the :class:`~malcolm.core.MethodLog` itself when its values are
+        all scalars (see ``fields._new_log``); every other callback gets
+        plain data (its ``to_dict()``).
         """
         if isinstance(path, str) or not path:
             raise NotFoundError(f"subscribe needs a path [mri, ...], got {path!r}")
@@ -376,11 +382,41 @@ class Process:
                 out.append([[], value] if exists else [[]])
         return out
 
+    def hold(self, mri: str, change: Change, until: list[str]) -> None:
+        """Publish ``change`` of block ``mri`` a little later: with the
+        block's next change if that is the one change at ``until``, as one
+        batch (``change`` first), else alone just before any other change of
+        any block is published, or at :meth:`release`. So a call's took and
+        returned, when its method does not wait, reach each subscriber as
+        one batch, and nothing published meanwhile is seen before the took.
+        On the loop; one change is held at a time (a new one releases it)."""
+        if self._held is not None:
+            self.release()
+        self._held = (mri, change, until)
+
+    def release(self) -> None:
+        """Publish the change :meth:`hold` keeps back, if any, now."""
+        held = self._held
+        if held is not None:
+            self._held = None
+            self._on_changes(held[0], [held[1]])
+
     def _on_changes(self, mri: str, changes: list[Change]) -> None:
+        if self._held is not None:  # a call's took goes first (see hold)
+            held = self._held
+            self._held = None
+            if held[0] == mri and len(changes) == 1 and changes[0][0] == held[2]:
+                self._on_logs(mri, [held[1], changes[0]], held[2][0])
+                return
+            self._on_changes(held[0], [held[1]])
         subs = self._subs.get(mri)
         if not subs:
             return  # nothing queued: an outer _flush (if any) has the rest
         queue = self._queue
+        # the changes as plain data, made for the first subscriber that is
+        # not given them as they are (a method's log is published as a
+        # MethodLog, see fields._new_log)
+        plain: list[Change] | None = None
         # no copy of subs: nothing below changes them (callbacks run in _flush)
         for sub in subs:
             below = sub.below
@@ -420,11 +456,48 @@ class Process:
                         if touching:
                             queue.append((sub, touching, below))
                         continue
-            relative = self._relative(sub, changes)
-            if relative:
-                payload = relative if sub.delta else self._get_or_none(sub.path)[1]
-                queue.append((sub, payload, sub.callback))
+            if plain is None:
+                plain = plain_changes(changes)
+            self._queue_relative(sub, plain)
         self._flush()
+
+    def _on_logs(self, mri: str, changes: list[Change], name: str) -> None:
+        """:meth:`_on_changes` of a call's took and returned as one batch
+        (``changes``, both below field ``name``, neither replacing it): a
+        field's ``below`` subscriber gets them if it is ``name``'s, with no
+        test of each change's path, a block's as they are; the others as
+        :meth:`_on_changes` gives them."""
+        subs = self._subs.get(mri)
+        if not subs:
+            return
+        queue = self._queue
+        plain: list[Change] | None = None  # (as in _on_changes)
+        for sub in subs:
+            below = sub.below
+            if below is not None:
+                field = sub.field
+                if field is not None:
+                    if field == name:
+                        queue.append((sub, changes, below))
+                    continue
+                rest = sub.rest
+                touching = _below(rest, changes) if rest else changes
+                if touching is not None:  # (never None: nothing is replaced)
+                    if touching:
+                        queue.append((sub, touching, below))
+                    continue
+            if plain is None:
+                plain = plain_changes(changes)
+            self._queue_relative(sub, plain)
+        self._flush()
+
+    def _queue_relative(self, sub: Subscription, plain: list[Change]) -> None:
+        """Queue ``sub``'s share of the plain ``changes`` (relative to its
+        path, or its whole value when it takes no deltas), if any."""
+        relative = self._relative(sub, plain)
+        if relative:
+            payload = relative if sub.delta else self._get_or_none(sub.path)[1]
+            self._queue.append((sub, payload, sub.callback))
 
     def _flush(self) -> None:
         if self._delivering:

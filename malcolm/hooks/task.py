@@ -23,7 +23,7 @@ from malcolm.core import (
 )
 from malcolm.core.errors import still_running
 
-from .origin import on_behalf_of
+from .origin import WRITER, on_behalf_of
 from .views import FieldView
 
 if TYPE_CHECKING:
@@ -105,6 +105,20 @@ class Task:
 
         After ``timeout`` seconds raises WaitTimeoutError; the put goes on.
         """
+        if timeout is None and not isinstance(target, Mapping):
+            # one put and no timeout: awaited in place, on the task's behalf
+            # (no Task of its own and no wait for it; cancelling the caller
+            # cancels it, as it cancels what a wait waits for)
+            path = target_path(target)
+            if self.origin is None:
+                await self.process.put(path, value)
+                return
+            token = WRITER.set(self.origin)
+            try:
+                await self.process.put(path, value)
+            finally:
+                WRITER.reset(token)
+            return
         futures = self.put_async(target, value)
         await self.wait_all(futures, timeout=timeout)
 
@@ -142,6 +156,10 @@ class Task:
             f if asyncio.isfuture(f) else self._track(asyncio.ensure_future(f))
             for f in flat
         ]
+        if len(flat) == 1 and timeout is None:
+            # awaited as it is: its error raised, and cancelling the caller
+            # cancels it (what the general case does, without asyncio.wait)
+            return [await flat[0]]
         try:
             done, pending = await asyncio.wait(
                 flat, timeout=timeout, return_when=asyncio.FIRST_EXCEPTION

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import re
 import weakref
@@ -81,8 +82,10 @@ FILE_PARAMS = ("fileDir", "formatName", "fileTemplate")
 _QUIET_STATES = {"Ready", "Fault", "Disabled", "Disabling", "Resetting"}
 
 
+@functools.lru_cache(maxsize=256)
 def safe_name(text: str) -> str:
-    """``text`` as a file name: lower case, runs of other characters ``_``."""
+    """``text`` as a file name: lower case, runs of other characters ``_``
+    (kept for the few names a process has: a block's mri)."""
     return re.sub(r"[^a-z0-9_.-]+", "_", text.lower()).strip("_") or "scan"
 
 

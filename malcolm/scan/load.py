@@ -14,6 +14,7 @@ import numpy as np
 from .compound import compound_points
 from .errors import GeneratorError
 from .fields import describe
+from .planned import planned_points
 from .points import ScanPoints
 from .spec import deserialize_spec, is_spec, spec_points
 
@@ -105,7 +106,9 @@ def scan_points(generator: Any) -> ScanPoints:
     data are kept by content, so the same dict given again (validate, then
     configure) is not built again; the points say what they were built from
     (`ScanPoints.content`), so a check of a scan made once need not be made
-    again for the same content. Safe to call from any thread.
+    again for the same content. The very object an operation in progress
+    planned (`malcolm.scan.planned`: a manager's generator, handed to its
+    children) is not read again at all. Safe to call from any thread.
 
     Args:
         generator: A scanspec `Spec`; a CompoundGenerator dict as GDA sends it;
@@ -120,6 +123,9 @@ def scan_points(generator: Any) -> ScanPoints:
     """
     if isinstance(generator, ScanPoints):
         return generator
+    planned = planned_points(generator)
+    if planned is not None:  # this very object, planned by the caller's operation
+        return planned.copy()
     if isinstance(generator, str | bytes | os.PathLike):
         raise GeneratorError(
             "",

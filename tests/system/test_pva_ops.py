@@ -12,6 +12,7 @@ import time
 from typing import Any
 
 import pytest
+from p4p import Type, Value
 
 from malcolm.io.pva.ops import OpRunner, start_op
 
@@ -470,5 +471,164 @@ def test_a_client_that_has_its_answer_gets_the_new_took_and_returned(served):  #
     try:
         got = first.get(timeout=5)
         assert got["returned.timeStamp.nanoseconds"] == stamp["nanoseconds"]
+    finally:
+        sub.close()
+
+
+def test_a_call_that_does_not_wait_is_one_update_of_took_and_returned(served):  # noqa: F811
+    """The core publishes a call's took and returned as one batch when its
+    method does not wait and publishes nothing else: a monitor of the
+    method's channel and one of the block's each get one update holding
+    both, equal to what the block keeps. A method that changes an attribute
+    (FIRST.zero) has its took published first: two updates, took first."""
+    import queue
+
+    from p4p import Type, Value
+
+    from malcolm.controllers.base import Controller
+    from malcolm.parts.demo.hello import HelloPart
+
+    tp, process, server, ctx = served
+
+    async def add() -> None:
+        controller = Controller("HI", [HelloPart("hello")])
+        process.add_controller(controller)
+        await controller.start()
+
+    process.call_threadsafe(add).result(10)
+
+    def stamps(method: str, mri: str) -> tuple[Any, Any]:
+        return process.call_threadsafe(
+            lambda: (
+                process.get([mri, method, "took", "timeStamp"]),
+                process.get([mri, method, "returned", "timeStamp"]),
+            )
+        ).result(5)
+
+    for mri, method, args, batches in (
+        ("HI", "greet", {"name": "me"}, [("took", "returned")]),
+        ("FIRST", "zero", {}, [("took",), ("returned",)]),
+    ):
+        field: queue.Queue[Any] = queue.Queue()
+        whole: queue.Queue[Any] = queue.Queue()
+        request = "record[queueSize=10]"
+        subs = [
+            monitor(ctx, f"{mri}.{method}", field.put, request=request),
+            monitor(ctx, mri, whole.put, request=request),
+        ]
+        try:
+            field.get(timeout=10)  # the whole field
+            whole.get(timeout=10)
+            types = [(k, "s") for k in args]
+            ctx.rpc(f"{mri}.{method}", Value(Type(types), args), timeout=5)
+            took, returned = stamps(method, mri)
+            stamp = {"took": took, "returned": returned}
+            for updates, prefix in ((field, ""), (whole, f"{method}.")):
+                for batch in batches:
+                    update = updates.get(timeout=10)
+                    while prefix and not any(  # the block's counter changes
+                        c.startswith(prefix) for c in update.changedSet()
+                    ):
+                        update = updates.get(timeout=10)
+                    changed = update.changedSet()
+                    for which in ("took", "returned"):
+                        where = f"{prefix}{which}.timeStamp.nanoseconds"
+                        if which in batch:
+                            assert update[where] == stamp[which]["nanoseconds"]
+                        else:
+                            assert where not in changed, (where, changed)
+            time.sleep(0.2)
+            assert field.empty()  # one update per batch
+        finally:
+            for sub in subs:
+                sub.close()
+
+
+def test_a_method_channel_answers_as_result_value_types_it_each_call(served):  # noqa: F811
+    """A call on a method's channel with plain arguments is read in line and
+    its result typed by result_value, then from its memo for results of the
+    same keys and types while the returns meta is the same; a new returns
+    meta is read and typed afresh; arguments that are not scalars still go
+    through method_args."""
+    from p4p import Type, Value
+
+    from malcolm.controllers.base import Controller
+    from malcolm.io.pva.results import result_value
+    from malcolm.parts.demo.hello import HelloPart
+
+    tp, process, server, ctx = served
+
+    async def add() -> None:
+        controller = Controller("HI", [HelloPart("hello")])
+        process.add_controller(controller)
+        await controller.start()
+
+    process.call_threadsafe(add).result(10)
+    args = Value(Type([("name", "s")]), {"name": "a"})
+    got = [ctx.rpc("HI.greet", args, timeout=5) for _ in range(2)]
+    chan = server._channels["HI.greet"]
+    returns = process.call_threadsafe(lambda: chan.data["meta"]["returns"]).result(5)
+    want = result_value({"greeting": "Hello a"}, returns)
+    for answer in got:
+        assert answer.type().aspy() == want.type().aspy()
+        assert answer.todict() == want.todict()
+    assert chan._memo and chan._memo[0] is returns
+    block = process.get_block("HI")
+    new = dict(returns, required=[])  # a change that fits: a new object
+
+    async def change() -> None:
+        block.notify([[["greet", "meta", "returns"], new]])
+
+    process.call_threadsafe(change).result(5)
+    answer = ctx.rpc("HI.greet", args, timeout=5)
+    assert answer["greeting"] == "Hello a"
+    memo = chan._memo
+    assert memo[0] is not returns and memo[0]["required"] == []
+    with pytest.raises(RuntimeError, match="BadValueError"):
+        ctx.rpc("HI.greet", Value(Type([("name", "as")]), {"name": ["x"]}), timeout=5)
+
+
+def test_a_calls_logs_taken_as_they_are_reach_the_channels_data_as_plain_data(
+    served,  # noqa: F811
+):
+    """The fast path takes a method's took and returned as the core's
+    MethodLogs; the channel's data, when read, holds their plain data (the
+    process's to_dict), for the block's and the method's channels, and a
+    reshape after them (the general path) builds from that data."""
+    from malcolm.core import Attribute, MethodLog, NumberMeta
+
+    tp, process, server, ctx = served
+    sub = monitor(ctx, "FIRST", lambda _value: None)
+    try:
+        ctx.get("FIRST", timeout=5)
+        ctx.get("FIRST.zero", timeout=5)
+        chans = [server._channels["FIRST"], server._channels["FIRST.zero"]]
+        for _ in range(2):
+            ctx.rpc("FIRST.zero", Value(Type([]), {}), timeout=5)
+
+        def check() -> None:
+            for chan in chans:
+                assert any(type(v) is MethodLog for v in chan._pending.values())
+                data = chan.data
+                method = data["zero"] if chan is chans[0] else data
+                want = process.get(["FIRST", "zero"])
+                for log in ("took", "returned"):
+                    assert method[log] == want[log]
+                    assert type(method[log]) is dict, log
+                assert not chan._pending
+
+        process.call_threadsafe(check).result(5)
+        ctx.rpc("FIRST.zero", Value(Type([]), {}), timeout=5)
+        block = process.get_block("FIRST")
+        process.call_threadsafe(block.add, Attribute("extra", NumberMeta("int32")))
+        deadline = time.monotonic() + 10
+        while "extra" not in (whole := ctx.get("FIRST", timeout=5)).keys():
+            assert time.monotonic() < deadline
+        took = process.call_threadsafe(process.get, ["FIRST", "zero", "took"]).result(5)
+        stamp = took["timeStamp"]
+        assert whole["zero.took.timeStamp.nanoseconds"] == stamp["nanoseconds"]
+        assert (
+            whole["zero.took.timeStamp.secondsPastEpoch"] == stamp["secondsPastEpoch"]
+        )
     finally:
         sub.close()

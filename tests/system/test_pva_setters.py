@@ -102,3 +102,49 @@ def test_a_result_is_typed_as_map_to_value_types_it_each_call(blocks):
     # a key no meta describes: typed by what it holds, not kept
     got = result_value({"greeting": "x", "extra": [1, 2]}, returns)
     assert list(got["extra"]) == [1, 2]
+    # the memo: a result of scalars its fields take as they are
+    memo: list[Any] = []
+    first = result_value({"greeting": "a"}, returns, memo)
+    assert memo[0] is returns and memo[1] == (("greeting", str),)
+    assert memo[2].aspy() == first.type().aspy()
+    again = Value(memo[2], {"greeting": "b"})
+    assert again.todict() == result_value({"greeting": "b"}, returns).todict()
+    memo.clear()
+    result_value({"greeting": "x", "extra": [1, 2]}, returns, memo)
+    assert memo == []  # not all typed by metas: nothing to reuse
+
+
+def test_a_structure_in_another_order_or_without_its_id_sets_the_same(blocks):
+    """A plain dict of every field in order is unpacked in one step; one in
+    another order, with fewer fields, without its typeid or of another id
+    goes field by field and sets (or refuses) what fits/assign do."""
+    hello = blocks["HELLO"]
+    log = copy.deepcopy(hello["greet"]["took"])
+    log["value"] = {"name": "x", "sleep": 0.5}
+    log["present"] = ["name", "sleep"]
+    full = both(hello, ["greet", "took"], copy.deepcopy(log))
+    assert full[0] is not None and full[0] == full[1]
+    variants = []
+    reordered = dict(reversed(list(copy.deepcopy(log).items())))
+    reordered["timeStamp"] = dict(reversed(list(reordered["timeStamp"].items())))
+    variants.append(reordered)
+    untyped = copy.deepcopy(log)
+    del untyped["typeid"]
+    variants.append(untyped)
+    other = copy.deepcopy(log)
+    other["timeStamp"]["typeid"] = "other_t"
+    variants.append(other)
+    fewer = copy.deepcopy(log)
+    fewer["value"] = {"sleep": 0.5}  # fewer arguments: field by field
+    variants.append(fewer)
+    typed_args = copy.deepcopy(log)
+    typed_args["value"] = {"typeid": "structure", "name": "y", "sleep": 1.0}
+    variants.append(typed_args)
+    results = [both(hello, ["greet", "took"], v) for v in variants]
+    for expected, got in results:
+        assert got == expected
+    assert results[2] == (None, None)  # a timeStamp of another id
+    assert results[3][0] is not None and results[4][0] is not None
+    counter = blocks["COUNTER"]
+    stamp = {"typeid": "time_t", "secondsPastEpoch": 3, "nanoseconds": 4.5}
+    assert both(counter, ["counter", "timeStamp"], stamp) == (None, None)

@@ -14,7 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
-from malcolm.config.build import build_block, expand, find_definition, load_definition
+from malcolm.config.build import build_definition
 from malcolm.controllers.runnable import RunnableController
 from malcolm.core import BadValueError, MalcolmError, NumberMeta, Process, StringMeta
 from malcolm.fsm import RunnableDevice
@@ -117,12 +117,12 @@ async def make(tmp_path: Path) -> tuple[Process, dict[str, FakeDevicePart]]:
     }
     for mri, part in devices.items():
         process.add_controller(RunnableController(f"BL:{mri}", [part]))
-    expanded = expand(
-        load_definition(find_definition("beamline.BeamlineManager")),
+    build_definition(
+        "beamline.BeamlineManager",
         {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
         mri="BL",
+        process=process,
     )
-    build_block(process, expanded)
     await process.start()
     ORDER.clear()
     SEEKS.clear()
@@ -353,12 +353,12 @@ def test_the_motion_checks_the_duration_the_detector_raised(tmp_path, delay):
         }  # fmt: skip
         for mri, device_parts in parts.items():
             process.add_controller(RunnableController(f"BL:{mri}", device_parts))
-        expanded = expand(
-            load_definition(find_definition("beamline.BeamlineManager")),
+        build_definition(
+            "beamline.BeamlineManager",
             {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
             mri="BL",
+            process=process,
         )
-        build_block(process, expanded)
         await process.start()
         gen = spiral()  # 1 ms a point
         validated = await process.post(

@@ -139,3 +139,20 @@ def test_a_structure_equal_to_the_one_last_set_is_skipped_whole(hello):
     back = Value(vtype)
     assert log_setter(back, copy.deepcopy(log))
     assert marked(back) == {"greet.took.alarm.severity": 0}
+
+
+def test_a_timestamp_leaf_equal_to_what_it_holds_is_left_and_others_checked(hello):
+    """A timeStamp's leaves (the core's ints) are compared to what they hold
+    first: an equal one is left unmarked; a new one of the wrong type is
+    still refused (the general path then takes the change)."""
+    counter = demo_process().get(["COUNTER"])
+    vtype = to_value(counter).type()
+    last: dict[str, Any] = {}
+    setter = setter_of(counter, ["counter", "timeStamp"], last)
+    stamp = {"typeid": "time_t", "secondsPastEpoch": 5, "nanoseconds": 6, "userTag": 0}
+    assert setter(Value(vtype), dict(stamp))
+    value = Value(vtype)
+    assert setter(value, {**stamp, "nanoseconds": 7})
+    assert marked(value) == {"counter.timeStamp.nanoseconds": 7}
+    assert not setter(Value(vtype), {**stamp, "nanoseconds": "8"})
+    assert not setter(Value(vtype), {**stamp, "secondsPastEpoch": 5.5})

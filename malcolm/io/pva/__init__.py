@@ -2,7 +2,9 @@
 
 - :mod:`malcolm.io.pva.convert`: Malcolm structures <-> p4p ``Value``s;
 - :mod:`malcolm.io.pva.server`: serve every block of a process
-  (:func:`start_pva_server`).
+  (:func:`start_pva_server`); each served name is a
+  :mod:`malcolm.io.pva.channel`, its puts and calls
+  :mod:`malcolm.io.pva.channel_requests`.
 
 See docs/pva.md.
 """

@@ -48,6 +48,8 @@ log = logging.getLogger(__name__)
 # without it (another Python) the first step waits for the Task's turn
 _enter_task: Callable[..., None] | None = getattr(asyncio.tasks, "_enter_task", None)
 _leave_task: Callable[..., None] | None = getattr(asyncio.tasks, "_leave_task", None)
+# loop -> its current task (what asyncio.current_task reads), read in line
+_current_tasks: dict[Any, Any] | None = getattr(asyncio.tasks, "_current_tasks", None)
 
 
 def error_text(e: BaseException) -> str:
@@ -147,7 +149,9 @@ def start_op(
         task.add_done_callback(tasks.discard)
 
 
-_EAGER = _enter_task is not None and _leave_task is not None
+_EAGER = (
+    _enter_task is not None and _leave_task is not None and _current_tasks is not None
+)
 
 
 class OpRunner:
@@ -162,6 +166,7 @@ class OpRunner:
         self._slot: _Slot | None = None
         self._context: contextvars.Context | None = None
         self._vars: dict[Any, Any] = {}  # its context's variables when made
+        self._nvars = 0  # how many
 
     def start(self, op: Any, coro: Coroutine[Any, Any, None]) -> None:
         """Run ``coro``, which answers ``op`` (an Exception it raises is
@@ -169,27 +174,39 @@ class OpRunner:
         (as p4p's hand-over calls the handlers) its first step is taken now.
         """
         loop = asyncio.get_running_loop()
-        if not _EAGER or asyncio.current_task(loop) is not None:
+        # asyncio.current_task(loop), in line
+        if not _EAGER or _current_tasks.get(loop) is not None:  # type: ignore[union-attr]
             start_op(op, coro, self.tasks)  # in a task: a Task of its own
             return
         task = self._task
         if task is None or task.done() or task.cancelling():
             task = self._stand(loop)
-        slot, context = self._slot, self._context
-        assert slot is not None and context is not None
+        context: contextvars.Context = self._context  # type: ignore[assignment]
         _enter_task(loop, task)  # type: ignore[misc]
+        # its first step: _ENDED if it returned or raised an Exception (op's
+        # error), else what _EagerStep keeps of it (the future it waits on,
+        # or a BaseException it raised)
         try:
-            first = context.run(_first_step, op, coro)
+            first = ("yield", context.run(coro.send, None))
+        except StopIteration:
+            first = _ENDED
+        except Exception as e:  # the client's error; the operation ends
+            op.done(error=error_text(e))
+            first = _ENDED
+        except BaseException as e:
+            first = ("raise", e)
         finally:
             _leave_task(loop, task)  # type: ignore[misc]
         if first is _ENDED:  # it returned (its error, if any, went to op)
-            if len(context) != len(self._vars) or (
-                self._vars and any(context[k] is not v for k, v in self._vars.items())
+            if len(context) != self._nvars or (
+                self._nvars and any(context[k] is not v for k, v in self._vars.items())
             ):  # a variable left changed: the next operation gets a new Task
                 self._task = None
                 task.cancel()
             return
         # it waits (or raised a BaseException): the standing Task is its own
+        slot = self._slot
+        assert slot is not None
         self._task = None
         step = _EagerStep(op, coro)
         step._first = first
@@ -202,6 +219,7 @@ class OpRunner:
         self._slot = slot = _Slot(loop)
         self._context = context = contextvars.copy_context()
         self._vars = dict(context)
+        self._nvars = len(self._vars)
         self._task = task = loop.create_task(slot, context=context)  # type: ignore[arg-type]
         return task
 
@@ -215,21 +233,6 @@ class OpRunner:
 
 
 _ENDED = object()
-
-
-def _first_step(op: Any, coro: Coroutine[Any, Any, None]) -> Any:
-    """The first step of ``coro``: ``_ENDED`` if it returned or raised an
-    Exception (``op``'s error), else what :class:`_EagerStep` keeps of it
-    (the future it waits on, or a BaseException it raised)."""
-    try:
-        return ("yield", coro.send(None))
-    except StopIteration:
-        return _ENDED
-    except Exception as e:  # the client's error; the operation ends
-        op.done(error=error_text(e))
-        return _ENDED
-    except BaseException as e:
-        return ("raise", e)
 
 
 class _Slot:

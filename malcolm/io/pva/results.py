@@ -113,9 +113,13 @@ def method_args(
     return path[0], method, _args(value, f"{channel}.{method}")
 
 
-def result_value(result: Any, returns: Any) -> Value:
+def result_value(result: Any, returns: Any, memo: list[Any] | None = None) -> Value:
     """A method's result as the Value an RPC returns, typed by its ``returns``
-    MapMeta where it says."""
+    MapMeta where it says. ``memo`` (a caller's list) is set to
+    ``[returns, ((key, type), ...), Type]`` when the result's every field
+    is a scalar of a type its field takes as it is: a result of those keys
+    and exact types (in order), for that same ``returns`` object, is then
+    ``Value(Type, result)`` (what this returns for it), without a call."""
     if result is None:
         result = {}
     if not isinstance(result, dict):
@@ -139,6 +143,12 @@ def result_value(result: Any, returns: Any) -> Value:
         if scalars is not None and all(
             type(v) in fit for v, fit in zip(result.values(), scalars)
         ):  # every field a scalar of a type it takes as it is
+            if memo is not None:
+                memo[:] = [
+                    returns,
+                    tuple(zip(result, map(type, result.values()))),
+                    known[2],
+                ]
             return Value(known[2], result)
         return Value(known[2], _fill(known[1], result))
     return map_to_value(result, elements)

@@ -31,6 +31,8 @@ from typing import Any
 
 from p4p import Value
 
+from malcolm.core import MethodLog
+
 from .convert import STRUCTURE, Spec, _fill, fits
 
 __all__ = ["Setter", "compile_setter"]
@@ -62,6 +64,15 @@ def compile_setter(
     an alarm, a MethodLog), with no call per field."""
     if not isinstance(spec, tuple):
         return _leaf_setter(spec, dotted, last)
+    if spec[1] == _METHOD_LOG and not subset:
+        return _log_setter(spec, dotted, last, _struct_setter(spec, dotted, last))
+    return _struct_setter(spec, dotted, last, subset)
+
+
+def _struct_setter(
+    spec: Spec, dotted: str, last: dict[str, Any] | None, subset: bool = False
+) -> Setter:
+    """The generated setter of a structure's plain data (see compile_setter)."""
     gen = _Generator(last is not None)
     body = gen.struct(spec, dotted, subset, "data", 1)
     source = "def setter(value, data):\n" + "".join(body) + "    return True\n"
@@ -73,6 +84,90 @@ def compile_setter(
 
 
 _MISSING = object()
+
+
+def _log_setter(
+    spec: Spec, dotted: str, last: dict[str, Any] | None, general: Setter
+) -> Setter:
+    """A MethodLog's setter: given the core's :class:`MethodLog` itself (what
+    a method publishes, see ``malcolm.core.fields._new_log``), its parts are
+    set from its attributes with no plain data made: its value by the
+    value's own setter (a structure of the method's takes or returns, fewer
+    fields allowed), its ``present`` compared to what it holds, its alarm
+    passed over when it is the very one last set (an :class:`Alarm` is
+    frozen: the core's logs mostly hold ``Alarm.ok``), its timeStamp's ints
+    compared to what they hold. Leaves are marked and recorded in ``last``
+    as ``general`` (the setter of its plain data, given anything else)
+    would; a part that does not fit as it is goes to ``general`` whole."""
+    if last is None:
+
+        def unremembered(value: Value, data: Any) -> bool:
+            if type(data) is MethodLog:
+                data = data.to_dict()
+            return general(value, data)
+
+        return unremembered
+    parts = dict(spec[2])
+    prefix = f"{dotted}." if dotted else ""
+    set_args = compile_setter(parts["value"], f"{prefix}value", True, last)
+    set_alarm = compile_setter(parts["alarm"], f"{prefix}alarm", last=last)
+    where_present, where_alarm = f"{prefix}present", f"{prefix}alarm"
+    stamp = f"{prefix}timeStamp"
+    where_s, where_ns, where_tag = (
+        f"{stamp}.secondsPastEpoch",
+        f"{stamp}.nanoseconds",
+        f"{stamp}.userTag",
+    )
+    if parts["present"] != "as" or parts["timeStamp"] != (
+        "S",
+        "time_t",
+        (("secondsPastEpoch", "l"), ("nanoseconds", "i"), ("userTag", "i")),
+    ):  # not the MethodLog the core makes: its plain data, always
+
+        def other(value: Value, data: Any) -> bool:
+            if type(data) is MethodLog:
+                data = data.to_dict()
+            return general(value, data)
+
+        return other
+
+    def log_setter(value: Value, data: Any) -> bool:
+        if type(data) is not MethodLog:
+            return general(value, data)
+        if not set_args(value, data.value):
+            return False
+        present = data.present
+        if present != last.get(where_present):
+            if type(present) is not list or not all(type(x) is str for x in present):
+                return general(value, data.to_dict())
+            value[where_present] = present
+            last[where_present] = list(present)
+        alarm = data.alarm
+        if alarm is not last.get(where_alarm):
+            if not set_alarm(value, alarm.to_dict()):
+                return False
+            last[where_alarm] = alarm  # (the leaves hold it: frozen)
+        stamp = data.timeStamp
+        seconds, nanoseconds, tag = (
+            stamp.secondsPastEpoch,
+            stamp.nanoseconds,
+            stamp.userTag,
+        )
+        if seconds != last.get(where_s):
+            if type(seconds) is not int:
+                return general(value, data.to_dict())
+            value[where_s] = last[where_s] = seconds
+        if nanoseconds != last.get(where_ns):
+            if type(nanoseconds) is not int:
+                return general(value, data.to_dict())
+            value[where_ns] = last[where_ns] = nanoseconds
+        if tag != last.get(where_tag):
+            if type(tag) is not int:
+                return general(value, data.to_dict())
+            value[where_tag] = last[where_tag] = tag
+        return True
+
+    return log_setter
 
 
 def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter:
@@ -127,6 +222,10 @@ def _leaf_setter(spec: Spec, dotted: str, last: dict[str, Any] | None) -> Setter
 #: structures whose leaves change every time: no record of them is kept
 _ALWAYS_NEW = frozenset({"time_t"})
 
+#: structures the core makes of ints (a timeStamp): a leaf equal to what it
+#: holds is passed over before its type is checked
+_COMPARED_FIRST = frozenset({"time_t"})
+
 
 def _recordable(spec: Spec) -> bool:
     """Whether a structure's setter keeps a record of the whole structure as
@@ -147,6 +246,7 @@ class _Generator:
             "fits": fits,
             "_fill": _fill,
             "MISSING": _MISSING,
+            "UNRECORDED": (_MISSING, None),
         }
         self.names = 0
         self.remember = remember  # with the channel's ``last`` (see the module)
@@ -168,52 +268,74 @@ class _Generator:
         log = spec[1] == _METHOD_LOG
         lines: list[str] = []
         record = self.remember and _recordable(spec)
+        floats = False
         if record:
             # the whole structure as last set (its shape checked then): equal,
             # nothing to check or set; a float zero equal to the one recorded
             # may differ in sign
             before = self.var()
-            zeros = "".join(
-                f" or (not {data}.get({key!r}) and"
-                f" str({data}.get({key!r})) != str({before}.get({key!r})))"
-                for key, sub in spec[2]
-                if sub in ("f", "d")
-            )
-            lines += [
-                f"{pad}{before} = last.get({dotted!r}, MISSING)\n",
-                f"{pad}if {before} is MISSING or {data} != {before}{zeros}:\n",
-            ]
+            floats = any(sub in ("f", "d") for _, sub in spec[2])
+            if floats:
+                # recorded with its text: equal dicts of the same text hold
+                # float zeros of the same sign
+                lines += [
+                    f"{pad}{before} = last.get({dotted!r}, UNRECORDED)\n",
+                    f"{pad}if {data} != {before}[0] or str({data}) != {before}[1]:\n",
+                ]
+            else:  # (None, what is not recorded, is unequal to a dict)
+                lines.append(f"{pad}if {data} != last.get({dotted!r}):\n")
             depth += 1
             pad += "    "
-        keys = self.var()
+        keys, typeid = self.var(), self.var()
         typed, plain = self.const(("typeid", *names)), self.const(names)
+        fields = [self.var() for _ in names]
+        unpacked = ", ".join(fields) + ("," if len(fields) == 1 else "")
+        # a plain dict of every field in order (what the core gives: a
+        # timeStamp, an alarm, a MethodLog) unpacked in one step; anything
+        # else checked and read field by field
         lines += [
-            f"{pad}if not isinstance({data}, dict):\n",
-            f"{pad}    return False\n",
-            f"{pad}if {data}.get('typeid', {STRUCTURE!r}) != {spec[1]!r}:\n",
-            f"{pad}    return False\n",
-            f"{pad}{keys} = tuple({data})\n",
-            f"{pad}if {keys} != {typed} and {keys} != {plain}:\n",
-            f"{pad}    {keys} = [k for k in {keys} if k != 'typeid']\n",
+            f"{pad}{keys} = tuple({data}) if type({data}) is dict else None\n",
+            f"{pad}if {keys} == {typed}:\n",
+            f"{pad}    {typeid}, {unpacked} = {data}.values()\n",
+            f"{pad}    if {typeid} != {spec[1]!r}:\n",
+            f"{pad}        return False\n",
+        ]
+        if spec[1] == STRUCTURE and names:  # no typeid: the plain form fits
+            lines += [
+                f"{pad}elif {keys} == {plain}:\n",
+                f"{pad}    {unpacked} = {data}.values()\n",
+            ]
+        lines += [
+            f"{pad}else:\n",
+            f"{pad}    if not isinstance({data}, dict):\n",
+            f"{pad}        return False\n",
+            f"{pad}    if {data}.get('typeid', {STRUCTURE!r}) != {spec[1]!r}:\n",
+            f"{pad}        return False\n",
+            f"{pad}    {keys} = tuple({data})\n",
+            f"{pad}    if {keys} != {typed} and {keys} != {plain}:\n",
+            f"{pad}        {keys} = [k for k in {keys} if k != 'typeid']\n",
         ]
         if subset:
             allowed = self.const(frozenset(names))
-            lines.append(f"{pad}    if not set({keys}) <= {allowed}:\n")
+            lines.append(f"{pad}        if not set({keys}) <= {allowed}:\n")
         else:
-            lines.append(f"{pad}    if tuple({keys}) != {plain}:\n")
-        lines.append(f"{pad}        return False\n")
+            lines.append(f"{pad}        if tuple({keys}) != {plain}:\n")
+        lines.append(f"{pad}            return False\n")
+        lines += [
+            f"{pad}    {var} = {data}.get({key!r})\n" for var, key in zip(fields, names)
+        ]
         prefix = f"{dotted}." if dotted else ""
-        for key, sub in spec[2]:
-            var = self.var()
-            lines.append(f"{pad}{var} = {data}.get({key!r})\n")
+        for var, (key, sub) in zip(fields, spec[2]):
             if not isinstance(sub, tuple) and _EXACT.get(sub) is not None:
                 # a scalar leaf: its type tested first (None is not of it)
-                lines += self.scalar(sub, prefix + key, var, pad)
+                trusted = spec[1] in _COMPARED_FIRST
+                lines += self.scalar(sub, prefix + key, var, pad, trusted)
                 continue
             lines.append(f"{pad}if {var} is not None:\n")
             lines += self.field(sub, prefix + key, log and key == "value", var, depth)
         if record:
-            lines.append(f"{pad}last[{dotted!r}] = {data}.copy()\n")
+            kept = f"({data}.copy(), str({data}))" if floats else f"{data}.copy()"
+            lines.append(f"{pad}last[{dotted!r}] = {kept}\n")
         return lines
 
     def field(
@@ -225,14 +347,22 @@ class _Generator:
         sub, where = self.const(spec), repr(dotted)
         exact = _EXACT.get(spec)
         lines = []
-        if spec == "as":  # a list of str as it is (a MethodLog's present)
-            # equal to what it holds (a list of str): no look at each item
-            same = f"{data} == last.get({where}) or " if self.remember else ""
+        strs = f"type({data}) is list and all(type(x) is str for x in {data})"
+        if spec == "as" and self.remember:  # a MethodLog's present
+            # equal to what it holds (a list of str that was checked):
+            # nothing to check or set; else a list of str as it is
+            pad += "    "
             lines += [
-                f"{pad}if type({data}) is list and (\n",
-                f"{pad}    {same}all(type(x) is str for x in {data})\n",
-                f"{pad}):\n",
-                *self.store(pad + "    ", where, data, f"list({data})"),
+                f"{pad[4:]}if {data} != last.get({where}):\n",
+                f"{pad}if {strs}:\n",
+                f"{pad}    value[{where}] = {data}\n",
+                f"{pad}    last[{where}] = list({data})\n",
+                f"{pad}elif fits({sub}, {data}):\n",
+            ]
+        elif spec == "as":
+            lines += [
+                f"{pad}if {strs}:\n",
+                f"{pad}    value[{where}] = {data}\n",
                 f"{pad}elif fits({sub}, {data}):\n",
             ]
         elif exact is not None:
@@ -252,11 +382,28 @@ class _Generator:
             f"{pad}    return False\n",
         ]
 
-    def scalar(self, spec: str, dotted: str, data: str, pad: str) -> list[str]:
+    def scalar(
+        self, spec: str, dotted: str, data: str, pad: str, trusted: bool = False
+    ) -> list[str]:
         """Lines that set a scalar leaf from ``data`` (maybe None: left as it
-        is), or return False if it does not fit."""
+        is), or return False if it does not fit; ``trusted`` (a leaf of a
+        timeStamp, which the core makes of ints): compared to what it holds
+        before its type is checked (equal: nothing to check or set)."""
         sub, where = self.const(spec), repr(dotted)
         types = self.const(_EXACT[spec])
+        if self.remember and trusted and spec not in ("f", "d"):
+            return [
+                f"{pad}if {data} != last.get({where}):\n",
+                f"{pad}    if type({data}) in {types}:\n",
+                f"{pad}        value[{where}] = {data}\n",
+                f"{pad}        last[{where}] = {data}\n",
+                f"{pad}    elif {data} is not None:\n",
+                f"{pad}        if fits({sub}, {data}):\n",
+                f"{pad}            last.pop({where}, None)\n",
+                f"{pad}            value[{where}] = _fill({sub}, {data})\n",
+                f"{pad}        else:\n",
+                f"{pad}            return False\n",
+            ]
         if self.remember and spec not in ("f", "d"):
             stored = [
                 f"{pad}    if {data} != last.get({where}, MISSING):\n",
