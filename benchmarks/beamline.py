@@ -34,6 +34,15 @@ once without it, alternated with the 3 layers' configure of the same scan
 (the reference column): they share this process's loop (and two cores
 with the simulations), so their work adds up; the 3 layers minus that
 figure is the co-ordination layer's own share.
+
+And the floor: the three devices' configure traffic done by the raw
+libraries at once, with no framework (:mod:`benchmarks.raw_ca` for the
+detector's and the motion controller's Channel Access, with their files;
+:class:`benchmarks.zebramgr.RawBox` for the Zebra's setup, data connection,
+file and ARM), the same scans as the three devices at once, against a new
+simulated IOC and Zebra2 with no malcolm process running (whose monitors
+would share this process's CPU). The simulations' own latency is in it: it
+is what any framework pays with this simulated hardware.
 """
 
 from __future__ import annotations
@@ -58,6 +67,9 @@ SCAN = f"{PREFIX}:SCAN"
 DEVICES = [f"{PREFIX}:{name}" for name in ("DET", "MOTORS", "ZEBRA")]
 MOTORS = f"{PREFIX}:MOTORS"
 ZEBRA = f"{PREFIX}:ZEBRA"
+#: the floor's IOC (new PV names: CA would take seconds to find the first
+#: IOC's names again on a new IOC, without a CA repeater)
+FLOOR = "BENCHFLOOR"
 #: points of the spiral run back to back (no turnarounds)
 SPIRAL_RUN = 10_000
 SOURCE = "targets from issue 13; reference: the demo's single-layer SCAN"
@@ -221,6 +233,13 @@ async def configure_devices_time(
     return took
 
 
+#: the scans of the three devices at once (and of the floor), by shape
+AT_ONCE = {
+    "grid": lambda i: grid(10, 10, 0.2 + i * 1e-6),
+    "spiral": lambda i: spiral(10_000, 0.2 + i * 1e-6),
+}
+
+
 async def measure_devices_at_once(
     process: Any, repeats: int, **args: Any
 ) -> dict[str, float]:
@@ -229,13 +248,9 @@ async def measure_devices_at_once(
     alternated with the beamline's configure of the same scan, so that both
     see the machine's load of the moment: ``<shape>`` the devices',
     ``<shape>_beamline`` the beamline's beside them."""
-    shapes = {
-        "grid": lambda i: grid(10, 10, 0.2 + i * 1e-6),
-        "spiral": lambda i: spiral(10_000, 0.2 + i * 1e-6),
-    }
     await configure_devices_time(process, grid(10, 10, 0.5), **args)
     out: dict[str, float] = {}
-    for shape, make in shapes.items():
+    for shape, make in AT_ONCE.items():
         devices, beamline = [], []
         for i in range(repeats):
             devices.append(await configure_devices_time(process, make(i), **args))
@@ -318,8 +333,128 @@ async def beamline_figures(points: int, repeats: int, want: float) -> dict[str, 
             figures["at_once"] = await measure_devices_at_once(
                 process, repeats, fileDir=file_dir
             )
+            figures["profiles"] = await motion_profiles(process, repeats)
         figures["exposure"] = exposure
         return figures
+
+
+async def motion_profiles(process: Any, repeats: int) -> dict[str, list[Any]]:
+    """The MOTORS' profile of each scan of :data:`AT_ONCE` (configured alone,
+    no file; reset after): what the floor's trajectory sends."""
+    part = process.get_controller(MOTORS).parts["trajectory"]
+    out: dict[str, list[Any]] = {}
+    for shape, make in AT_ONCE.items():
+        out[shape] = []
+        for i in range(repeats):
+            await process.post(
+                [MOTORS, "configure"], {"generator": make(i), "axesToMove": ["x", "y"]}
+            )
+            out[shape].append(part.profile)
+            await process.post([MOTORS, "reset"])
+    return out
+
+
+class Floor:
+    """The three devices' configure traffic by the raw libraries, against
+    simulators of their own (see the module's docstring)."""
+
+    def __init__(self, raw: Any, box: Any, file_dir: str) -> None:
+        self.raw, self.box, self.dir = raw, box, file_dir
+
+    def detector(self, points: int, exposure: float, everything: bool) -> None:
+        from benchmarks import raw_ca
+        from malcolm.parts.adcore import positions_xml
+        from malcolm.parts.detector_manager import XML_BATCH
+
+        other, writer = raw_ca.detector_settings(
+            FLOOR, exposure, points, self.dir, "raw-det", external=True
+        )
+        if not everything:  # what changed from the last scan: its duration
+            other = {k: v for k, v in other.items() if "Exposure" in k or "Period" in k}
+            writer = {}
+        loaded = min(points, 10_000)  # the manager's preload
+        batches = [
+            positions_xml(start, min(loaded, start + XML_BATCH))
+            for start in range(0, loaded, XML_BATCH)
+        ]
+        raw_ca.detector_configure(self.raw, FLOOR, other, writer, batches, True)
+
+    def motion(self, arrays: dict[str, Any]) -> None:
+        from benchmarks import raw_ca
+        from malcolm.parts.motion_file import MotionFile
+
+        made = MotionFile(f"{self.dir}/raw-motors.h5", ["x", "y"])
+        raw_ca.motion_configure(self.raw, FLOOR, arrays, made.create)
+
+    async def configure(
+        self, points: int, exposure: float, arrays: dict[str, Any], everything: bool
+    ) -> float:
+        """Seconds the three take at once."""
+        start = time.perf_counter()
+        await asyncio.gather(
+            asyncio.to_thread(self.detector, points, exposure, everything),
+            asyncio.to_thread(self.motion, arrays),
+            self.box.arm(points, exposure, Path(self.dir) / "raw-zebra.h5"),
+        )
+        took = time.perf_counter() - start
+        from benchmarks import raw_ca
+
+        await asyncio.to_thread(raw_ca.detector_stop, self.raw, FLOOR)
+        await self.box.disarm()
+        return took
+
+
+async def floor_figures(profiles: dict[str, list[Any]]) -> dict[str, float]:
+    """Median seconds of the floor's configure of each shape's scans."""
+    import numpy as np
+
+    from benchmarks import raw_ca
+    from benchmarks.zebramgr import RawBox
+    from malcolm.beamline import SimZebra2
+    from malcolm.sim.beamline_ioc import SimIOC
+
+    ioc = SimIOC(FLOOR)
+    zebra = SimZebra2()
+    ioc.start()
+    try:
+        zebra.start()
+        box = RawBox(zebra.host, zebra.control_port, zebra.data_port)
+        await box.open_control()
+        names, monitored = raw_ca.detector_pvs(FLOOR)
+        raw = raw_ca.RawCA(names + raw_ca.motion_pvs(FLOOR)[0], monitored)
+        out: dict[str, float] = {}
+        try:
+            with tempfile.TemporaryDirectory() as file_dir:
+                floor = Floor(raw, box, file_dir)
+                for shape, made in profiles.items():
+                    arrays = [raw_ca.motion_arrays(FLOOR, p) for p in made]
+                    points = [int(p.stop_step) for p in made]
+                    exposures = [
+                        AT_ONCE[shape](i)["duration"] for i in range(len(made))
+                    ]
+                    # the first puts everything (not counted)
+                    await floor.configure(points[-1], exposures[-1], arrays[-1], True)
+                    times = []
+                    for i in range(len(made)):
+                        last = arrays[i - 1]
+                        changed = {
+                            pv: v
+                            for pv, v in arrays[i].items()
+                            if not np.array_equal(np.asarray(last[pv]), np.asarray(v))
+                        }
+                        took = await floor.configure(
+                            points[i], exposures[i], changed, False
+                        )
+                        log(f"the floor: configure {took * 1e3:.3g} ms")
+                        times.append(took)
+                    out[shape] = median(times)
+        finally:
+            raw.close()
+            box.writer.close()
+        return out
+    finally:
+        zebra.stop()
+        ioc.stop()
 
 
 async def demo_figures(points: int, repeats: int, exposure: float) -> dict[str, Any]:
@@ -376,6 +511,20 @@ def rows(three: dict[str, Any], one: dict[str, Any]) -> list[Row]:
                 f"{beside * ms:.3g} ms",
                 "the co-ordination layer's own share"
                 f" {(beside - at_once[key]) * ms:.3g} ms (3 layers alternated)",
+            )
+        )
+    floor = three["floor"]
+    for key, case in (("grid", "10x10 grid"), ("spiral", "10,000-point spiral")):
+        beside = at_once[f"{key}_beamline"]
+        out.append(
+            Row(
+                f"  {case}: the 3 devices' traffic by the raw libraries at once",
+                floor[key] * ms,
+                "ms",
+                f"<= 3x ({3 * one[key] * ms:.3g} ms)",
+                f"{one[key] * ms:.3g} ms",
+                f"the floor: {floor[key] / one[key]:.2f}x the single layer;"
+                f" 3 layers {beside / floor[key]:.2f}x it",
             )
         )
     added = three["overhead"] - one["overhead"]
@@ -448,6 +597,7 @@ def rows(three: dict[str, Any], one: dict[str, Any]) -> list[Row]:
 
 async def measure(points: int, repeats: int, want: float) -> list[Row]:
     three = await beamline_figures(points, repeats, want)
+    three["floor"] = await floor_figures(three.pop("profiles"))
     one = await demo_figures(points, repeats, three["exposure"])
     return rows(three, one)
 

@@ -12,7 +12,14 @@ hierarchy), on the simulated IOC:
   (``MIN_EXPOSURE``, 0.1 ms, Internal triggering, 2000 points into an HDF5 file): the
   manager's run() less the same acquisition driven by raw pyepics puts
   (Acquire put with completion, until the writer is done), per point,
-  target at most 0.1 ms a point.
+  target at most 0.1 ms a point;
+- the floor of each configure: its Channel Access traffic done by the raw
+  library (:mod:`benchmarks.raw_ca`: the same puts, in the manager's two
+  chains at once, each put with completion, the waits for the plugin
+  running and the writer capturing, the file made by the IOC), median of
+  five, the manager's configure beside it as a ratio. As the manager's
+  configures, each after a reset, of the same scan: the settings the IOC
+  holds already are not sent again.
 """
 
 from __future__ import annotations
@@ -50,6 +57,39 @@ async def configure_times(
         await process.post([mri, "abort"])
         await process.post([mri, "reset"])
     return median(times)
+
+
+def raw_configure_times(file_dir: str, points: int) -> float:
+    """Median seconds of the raw library's configure (:mod:`benchmarks.raw_ca`)
+    of a ``points`` scan as the manager's (Internal triggering, the file
+    ``det.h5``): a first one puts every setting (not counted), the next
+    five the plugin's clearing and positions, its start and the writer's
+    capture, as the manager's do."""
+    from benchmarks import raw_ca
+    from malcolm.parts.adcore import positions_xml
+    from malcolm.parts.detector_manager import XML_BATCH
+
+    raw = raw_ca.RawCA(*raw_ca.detector_pvs(PREFIX))
+    try:
+        other, writer = raw_ca.detector_settings(
+            PREFIX, 0.01, points, file_dir, "det", external=False
+        )
+        batches = [
+            positions_xml(start, min(points, start + XML_BATCH))
+            for start in range(0, points, XML_BATCH)
+        ]
+        raw_ca.detector_stop(raw, PREFIX)
+        raw_ca.detector_configure(raw, PREFIX, other, writer, batches, False)
+        times = []
+        for _ in range(5):
+            raw_ca.detector_stop(raw, PREFIX)
+            began = time.perf_counter()
+            raw_ca.detector_configure(raw, PREFIX, {}, {}, batches, False)
+            times.append(time.perf_counter() - began)
+        raw_ca.detector_stop(raw, PREFIX)
+        return median(times)
+    finally:
+        raw.close()
 
 
 async def detector(file_dir: str) -> tuple[float, float, float]:
@@ -145,6 +185,8 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             raw = median([raw_run(tmp, POINTS) for _ in range(3)])
             small, big, ours = asyncio.run(detector(tmp))
+            raw_small = raw_configure_times(tmp, 100)
+            raw_big = raw_configure_times(tmp, 10_000)
     finally:
         ioc.stop()
     demo_small, demo_big = asyncio.run(demo())
@@ -165,6 +207,22 @@ def main() -> None:
             "<= 3x (hierarchy)",
             "-",
             f"detector {big * ms:.1f} ms, demo {demo_big * ms:.1f} ms",
+        ),
+        Row(
+            "configure 10x10, DetectorManager / raw library (floor)",
+            small / raw_small,
+            "x",
+            "-",
+            "-",
+            f"detector {small * ms:.1f} ms, raw {raw_small * ms:.1f} ms",
+        ),
+        Row(
+            "configure 10,000 points, DetectorManager / raw library (floor)",
+            big / raw_big,
+            "x",
+            "-",
+            "-",
+            f"detector {big * ms:.1f} ms, raw {raw_big * ms:.1f} ms",
         ),
         Row(
             f"run at {EXPOSURE * ms:g} ms exposure, DetectorManager - raw pyepics",

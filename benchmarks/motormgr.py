@@ -56,9 +56,11 @@ def spiral(
     )
 
 
-async def manager_configure(*generators: dict[str, Any]) -> tuple[float, Any]:
+async def manager_configure(
+    *generators: dict[str, Any],
+) -> tuple[float, Any, list[Any]]:
     """Median seconds of the manager's configure() of ``generators`` in
-    turn, and its last profile."""
+    turn, its last profile and the profile of each generator."""
     from malcolm.config.build import build_definition
     from malcolm.core import Process
 
@@ -69,6 +71,8 @@ async def manager_configure(*generators: dict[str, Any]) -> tuple[float, Any]:
     await process.start()
     try:
         await process.post([MRI, "configure"], {"generator": generators[-1]})
+        part = process.get_controller(MRI).parts["trajectory"]
+        profiles = [part.profile] * len(generators)
         times = []
         for i in range(REPEATS):
             await process.post([MRI, "reset"])
@@ -76,8 +80,8 @@ async def manager_configure(*generators: dict[str, Any]) -> tuple[float, Any]:
             began = time.perf_counter()
             await process.post([MRI, "configure"], {"generator": generator})
             times.append(time.perf_counter() - began)
-        part = process.get_controller(MRI).parts["trajectory"]
-        return median(times), part.profile
+            profiles[i % len(generators)] = part.profile
+        return median(times), part.profile, profiles
     finally:
         await process.stop()
 
@@ -101,6 +105,34 @@ def raw_configure(profile: Any) -> float:
         epics.caput(f"{PREFIX}:TRAJ:BuildProfile", 1, wait=True)
         times.append(time.perf_counter() - began)
     return median(times)
+
+
+def floor_configure(profiles: list[Any]) -> float:
+    """Median seconds of the raw library's configure of ``profiles`` in
+    turn (as :func:`manager_configure` alternates them): the arrays that
+    differ from the last one's, then the build and its status."""
+    import numpy as np
+
+    from benchmarks import raw_ca
+
+    raw = raw_ca.RawCA(raw_ca.motion_pvs(PREFIX)[0])
+    try:
+        arrays = [raw_ca.motion_arrays(PREFIX, p) for p in profiles]
+        raw_ca.motion_configure(raw, PREFIX, arrays[-1])
+        times = []
+        for i in range(REPEATS):
+            last, now = arrays[(i - 1) % len(arrays)], arrays[i % len(arrays)]
+            changed = {
+                pv: value
+                for pv, value in now.items()
+                if not np.array_equal(np.asarray(last[pv]), np.asarray(value))
+            }
+            began = time.perf_counter()
+            raw_ca.motion_configure(raw, PREFIX, changed)
+            times.append(time.perf_counter() - began)
+        return median(times)
+    finally:
+        raw.close()
 
 
 async def demo_configure(generator: dict[str, Any]) -> float:
@@ -189,11 +221,12 @@ def measure(points: int) -> list[Row]:
     generator = spiral(points, 0.01)
     # new positions each time (a centre 20 nm away: the motors, within
     # their deadband, do not move), as raw pyepics sends them every time
-    mine, profile = asyncio.run(
+    mine, profile, profiles = asyncio.run(
         manager_configure(generator, spiral(points, 0.01, (2e-5, 2e-5)))
     )
-    again, _ = asyncio.run(manager_configure(generator))
+    again, _, _ = asyncio.run(manager_configure(generator))
     raw = raw_configure(profile)
+    floor = floor_configure(profiles)
     demo = asyncio.run(demo_configure(generator))
     numpy_time = profile_time(generator)
     run_points, run, block_exec = asyncio.run(manager_run(RUN_POINTS, 0.001))
@@ -207,6 +240,8 @@ def measure(points: int) -> list[Row]:
             f"{profile.size} profile points"),
         Row("... / raw pyepics load + build", mine / raw, "x", "-", "-",
             f"raw {raw * 1e3:.1f} ms"),
+        Row("... / raw library, the manager's chains (floor)", mine / floor, "x",
+            "-", "-", f"raw {floor * 1e3:.1f} ms"),
         Row("configure, the same spiral again", again * 1e3, "ms", "-", "-",
             "arrays held by the controller are not sent"),
         Row("... / demo SCAN configure", mine / demo, "x",

@@ -73,9 +73,20 @@ async def malcolm_configure(
 class RawBox:
     """The same work on bare sockets: pipelined commands, DataConnection."""
 
+    def __init__(self, host: str = HOST, control: int = CONTROL, data: int = DATA):
+        self.address = (host, control, data)
+
     async def open(self) -> None:
-        self.reader, self.writer = await asyncio.open_connection(HOST, CONTROL)
-        self.dreader, self.dwriter = await asyncio.open_connection(HOST, DATA)
+        await self.open_control()
+        await self.open_data()
+
+    async def open_control(self) -> None:
+        host, control, _ = self.address
+        self.reader, self.writer = await asyncio.open_connection(host, control)
+
+    async def open_data(self) -> None:
+        host, _, data = self.address
+        self.dreader, self.dwriter = await asyncio.open_connection(host, data)
         self.conn = DataConnection()
         self.dwriter.write(self.conn.connect(True))
         ready = False
@@ -107,6 +118,22 @@ class RawBox:
 
     async def close(self) -> None:
         self.writer.close()
+        self.dwriter.close()
+
+    async def arm(self, points: int, period: float, path: Path) -> None:
+        """The ZebraManager's configure with the control connection open
+        (as the manager keeps it): the setup batch, a new data connection
+        and the empty file at once, then ARM."""
+        await asyncio.gather(
+            self.send(setup_commands(0, points, period)),
+            self.open_data(),
+            asyncio.to_thread(create_scan_file, path, {}),
+        )
+        await self.send(["*PCAP.ARM="])
+
+    async def disarm(self) -> None:
+        """DISARM and the data connection closed (after :meth:`arm`)."""
+        await self.send(["*PCAP.DISARM="])
         self.dwriter.close()
 
 

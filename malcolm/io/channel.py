@@ -16,7 +16,9 @@ What a channel promises:
 - ``await get()`` returns the current :class:`Reading` (value, alarm,
   timeStamp); ``await put(value, timeout)`` returns once the put has
   completed (a Channel Access put with callback). A put's timeout stops the
-  wait, never the put (docs/embedding.md).
+  wait, never the put (docs/embedding.md). ``await put_and_read(value)``
+  is a put, then a get once it completed (a backend may send the get
+  itself the moment the put completes).
 - ``await current(timeout)`` is a get whose answer the subscription has
   caught up with: it returns once the subscribers were given that reading
   (or a newer one). A backend gives each event of a name to all its
@@ -274,6 +276,15 @@ class Channel(ABC):
     @abstractmethod
     async def _put(self, value: Any) -> None:
         """Write ``value``; return when the put has completed."""
+
+    async def put_and_read(self, value: Any) -> Reading:
+        """Put ``value`` with completion, then read: the reading of ``read``
+        (the readback) once the put has completed, as ``put`` then ``get``
+        give it, with their errors. A backend may send the read the moment
+        the put completes (the pyepics one does, from libca's thread, with
+        no hop to the loop and back between)."""
+        await self.put(value)
+        return await self.get()
 
     def subscribe(self, callback: ValueCallback) -> Callable[[], None]:
         """``callback(reading)`` on every change; returns the unsubscribe."""

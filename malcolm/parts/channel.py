@@ -220,8 +220,7 @@ class ChannelPart(Part):
                 f"{self.write or self.read}: not connected (the block has not started)"
             )
         try:
-            await channel.put(value)
-            reading = await channel.get()
+            reading = await channel.put_and_read(value)
         except ChannelError as e:  # the same kind, naming block and field
             assert self._registrar is not None
             raise type(e)(f"{self._registrar.mri}.{self.name}: {e}") from None

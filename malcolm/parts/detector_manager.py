@@ -418,19 +418,20 @@ class DetectorManagerPart(Part):
         self.datasets.set_value(dataset_rows(rows))
 
     # ---- arming and stopping
-    async def _load(self, task: Task, upto: int) -> None:
+    async def _load(self, task: Task, upto: int, *before: Any) -> None:
         """Load positions ``self._loaded .. upto-1`` into the plugin,
         ``XML_BATCH`` a put. The puts are all sent at once, in order: Channel
         Access delivers one client's puts to a record in the order sent and
         the record takes each after the last (a busy record queues the next
         put), so the plugin appends them in order while the next are on
-        their way; each is still checked."""
+        their way; each is still checked, after the puts ``before`` (sent
+        before them: their errors first)."""
         puts = []
         while self._loaded < upto:
             start = self._loaded
             self._loaded = stop = min(upto, start + XML_BATCH)  # taken now
             puts.append(task.put_async(self.pos.xml, _batch_xml(start, stop)))
-        await task.wait_all(puts)
+        await task.wait_all(*before, puts)
 
     async def _arm(
         self,
@@ -495,12 +496,16 @@ class DetectorManagerPart(Part):
         self, task: Task, start: int, end: int, settings: dict[Any, Any]
     ) -> None:
         """Clear and load the position plugin while ``settings`` go, then
-        start it (once its positions and the driver's settings are in)."""
+        start it (once its positions and the driver's settings are in).
+        The clearing and the positions are sent at once: the plugin takes
+        one client's puts in the order sent (areaDetector's port thread, the
+        simulation's dispatcher), so it clears before it loads, one round
+        trip in a row where there were two."""
         pos = self.pos
         puts = task.put_async(settings)
-        await task.put(pos.delete, True)
+        cleared = task.put_async(pos.delete, True)
         self._loaded = start
-        await self._load(task, min(end, start + self.preload))
+        await self._load(task, min(end, start + self.preload), cleared)
         await task.wait_all(puts)
         running = task.when_matches(pos.running, True, timeout=SETTLE_TIMEOUT)
         self._busy["plugin"] = task.put_async(pos.start, True)

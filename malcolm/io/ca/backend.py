@@ -29,6 +29,8 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import threading
+import weakref
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -36,7 +38,6 @@ import numpy as np
 from epics import dbr
 
 from malcolm.core import Alarm, AlarmSeverity, AlarmStatus, TimeStamp
-from malcolm.core.threads import call_threadsafe
 
 from ..channel import (
     Backend,
@@ -116,8 +117,8 @@ def info_of(ftype: int | None, md: dict[str, Any]) -> dict[str, Any]:
 
 class PVFanout:
     """The one listener of a :class:`~.link.Link` for the channels of one
-    asyncio loop: hands each event to the loop once (one
-    :func:`~malcolm.core.threads.call_threadsafe` hop) and there gives it to
+    asyncio loop: hands each event to the loop once (one :func:`to_loop`
+    hop) and there gives it to
     every channel in turn, in one loop callback.
 
     It keeps what it last gave on the loop (connected, control information,
@@ -144,8 +145,7 @@ class PVFanout:
         self._hop(self._info_event, link.ftype, payload[1])
 
     def _hop(self, func: Callable[..., None], *args: Any) -> None:
-        if not self.loop.is_closed():
-            call_threadsafe(self.loop, func, *args)
+        to_loop(self.loop, func, *args)
 
     # ---- on the loop: one callback per event, every channel
     def _connection(self, up: bool) -> None:
@@ -190,6 +190,75 @@ class PVFanout:
             self.link.detach(self)
 
 
+class _Inbox:
+    """What libca's threads hand to one loop, in the order they hand it: one
+    ``call_soon_threadsafe`` (one wake-up of the loop, one write to its
+    self-pipe) for all that arrives before the loop takes it, not one each.
+    The loop runs what it found in one callback, then (if more came
+    meanwhile) again after its other ready work."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.loop = loop
+        self.items: list[tuple[Callable[..., None], tuple[Any, ...]]] = []
+        self.lock = threading.Lock()
+        self.due = False  # a drain is scheduled on the loop
+
+    def put(self, func: Callable[..., None], args: tuple[Any, ...]) -> None:
+        with self.lock:
+            self.items.append((func, args))
+            if self.due:
+                return
+            self.due = True
+        try:
+            self.loop.call_soon_threadsafe(self.drain)
+        except RuntimeError:  # closed meanwhile: nobody listens
+            pass
+
+    def drain(self) -> None:
+        with self.lock:
+            items, self.items = self.items, []
+        for func, args in items:
+            try:
+                func(*args)
+            except Exception:
+                log.exception("handing a Channel Access event to the loop failed")
+        with self.lock:
+            if not self.items:
+                self.due = False
+                return
+        self.loop.call_soon(self.drain)  # more came: after the loop's other work
+
+
+_inboxes: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _Inbox] = (
+    weakref.WeakKeyDictionary()
+)
+_inboxes_lock = threading.Lock()
+
+
+def to_loop(
+    loop: asyncio.AbstractEventLoop, func: Callable[..., None], *args: Any
+) -> None:
+    """Run ``func(*args)`` on ``loop``: at once on the loop's own thread, else
+    through the loop's inbox (nothing if the loop is closed).
+
+    The short road of docs/channels.md's thread-to-loop paths, for what
+    libca's threads hand over (events, get and put answers): plain functions
+    whose result nobody waits for, so no Future is made in libca's thread
+    and settled on the loop, as :func:`~malcolm.core.threads.call_threadsafe`
+    does, and one wake-up of the loop for all that arrives before it runs
+    (:class:`_Inbox`), in order; what they change, they change on the loop."""
+    if asyncio._get_running_loop() is loop:
+        func(*args)
+        return
+    if loop.is_closed():
+        return
+    inbox = _inboxes.get(loop)
+    if inbox is None:
+        with _inboxes_lock:
+            inbox = _inboxes.setdefault(loop, _Inbox(loop))
+    inbox.put(func, args)
+
+
 #: (PV name, loop) -> the fanout of that PV's channels on that loop
 _fanouts: dict[tuple[str, asyncio.AbstractEventLoop], PVFanout] = {}
 
@@ -223,7 +292,8 @@ class PyepicsChannel(Channel):
         self._ever = False  # connected once: a loss is "connection lost"
 
     def _on_loop(self, func: Callable[..., None], *args: Any) -> None:
-        super()._on_loop(self._logged, func, *args)
+        if self._loop is not None:
+            to_loop(self._loop, self._logged, func, *args)
 
     def _logged(self, func: Callable[..., None], *args: Any) -> None:
         try:
@@ -281,7 +351,11 @@ class PyepicsChannel(Channel):
 
     def _shape(self, value: Any) -> Any:
         """The PV's value in the form of the channel's default."""
-        default, ftype = self._default, self._links[self.read].ftype
+        default = self._default
+        kind, wanted = type(value), type(default)
+        if (kind is float or kind is int) and (wanted is float or wanted is int):
+            return wanted(value)  # a scalar number (most events): at once
+        ftype = self._links[self.read].ftype
         if isinstance(default, bool):
             return bool(np.asarray(value).ravel()[0]) if np.size(value) else False
         if isinstance(default, str):
@@ -400,6 +474,34 @@ class PyepicsChannel(Channel):
             fut.cancel()
             raise ChannelError(f"{self.write}: cannot put {value!r}: {e}") from None
         await fut
+
+    async def put_and_read(self, value: Any) -> Reading:
+        """A put with completion, and the get of the readback sent from
+        libca's thread the moment the put completes (no hop to the loop and
+        back between them); the same errors as ``put`` then ``get``."""
+        self._check_open()
+        if self.write is None:
+            raise ChannelError(f"{self.read} is a readback: it has no PV to put to")
+        self.check_connected()
+        converted = self._to_pv(value)
+        fut = self._future()
+        readback = self._links[self.read]
+
+        def answered(payload: Payload | None, error: str) -> None:
+            self._on_loop(self._settle, fut, payload, error)
+
+        def done(_: Any, error: str) -> None:
+            if error:
+                self._on_loop(self._settle, fut, None, error)
+            else:
+                readback.get(answered)  # now, in libca's thread
+
+        try:
+            self._links[self.write].put(converted, done)
+        except ValueError as e:
+            fut.cancel()
+            raise ChannelError(f"{self.write}: cannot put {value!r}: {e}") from None
+        return self._convert(await fut)
 
     async def _close(self) -> None:
         self._fail_pending(DisconnectedError(f"{self.name}: closed"))

@@ -13,7 +13,12 @@ reconnection and sends their first events again):
 What happens arrives in libca's own threads and goes, unconverted, to the
 link's listeners (:class:`LinkListener`), which hand it to their asyncio
 loop. Gets and puts are asynchronous too (``ca_array_get_callback`` and a put
-with callback): nothing here blocks waiting for the IOC.
+with callback): nothing here blocks waiting for the IOC. A get or put made on
+a running loop is sent by :func:`flush_soon`, once at the end of the loop's
+turn with every other request of that turn (a few packets where there was a
+``ca_flush_io`` each). libca sends one circuit's requests in the order they
+were made and the IOC serves them in that order, so a get made after a put
+still reads what the put left.
 
 Every libca call uses pyepics' one initial context, attached to whatever
 thread calls (``ca.use_initial_context``), so CA has one context per
@@ -57,8 +62,37 @@ def _context() -> None:
     ca.use_initial_context()
 
 
+#: the TIME forms of one number (most events): a pointer to their struct
+_TIME_NUMBERS = {
+    ftype: ctypes.POINTER(dbr.Map[ftype])
+    for ftype in (dbr.TIME_DOUBLE, dbr.TIME_FLOAT, dbr.TIME_LONG, dbr.TIME_INT,
+                  dbr.TIME_ENUM)
+}  # fmt: skip
+
+
 def _unpack(args: Any) -> Payload | None:
-    """The value and metadata of a libca event (a get or a monitor)."""
+    """The value and metadata of a libca event (a get or a monitor).
+
+    One number in its TIME form (most events) is read from its struct at
+    once, giving what pyepics' unpacking gives (:func:`_unpack_any`, which
+    takes the rest) in a fraction of the time, in libca's thread."""
+    if args.count == 1:
+        pointer = _TIME_NUMBERS.get(args.type)
+        if pointer is not None and args.raw_dbr:
+            event = ctypes.cast(args.raw_dbr, pointer).contents
+            stamp = event.stamp
+            return event.value, {
+                "status": event.status,
+                "severity": event.severity,
+                "timestamp": dbr.make_unixtime(stamp),
+                "posixseconds": stamp.secs + dbr.EPICS2UNIX_EPOCH,
+                "nanoseconds": stamp.nsec,
+            }
+    return _unpack_any(args)
+
+
+def _unpack_any(args: Any) -> Payload | None:
+    """The value and metadata of any libca event, by pyepics' unpacking."""
     raw = dbr.cast_args(args)
     if raw[1] is None:
         return None
@@ -285,7 +319,7 @@ class Link:
                 _pending_gets.pop(id(callback), None)
             callback(None, ca.message(status))
             return
-        ca.libca.ca_flush_io()  # now: a get after a put waits for this one
+        flush_soon()
 
     def put(self, value: Any, callback: GetCallback) -> None:
         """Put ``value`` with a callback (``ca_array_put_callback``):
@@ -309,7 +343,7 @@ class Link:
                 _pending_puts.pop(id(callback), None)
             callback(None, ca.message(status))
             return
-        ca.libca.ca_flush_io()
+        flush_soon()
 
 
 def _marshal(value: Any, ftype: int, count: int) -> tuple[Any, int]:

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from softioc import builder
 
+from .dispatch import in_place
 from .pace import MIN_PERIOD, Schedule, Throttled
 from .plugins import (
     TEXT,
@@ -134,7 +135,7 @@ class Detector(Stoppable):
             initial_value=0,
             always_update=True,
             blocking=True,
-            on_update=readback.set,
+            on_update=in_place(readback.set),
         )
 
     def trigger(self, point: int = -1) -> None:

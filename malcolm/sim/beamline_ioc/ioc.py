@@ -41,14 +41,16 @@ def build(prefix: str, bench_blocks: int = 0) -> dict[str, object]:
 
 def run(prefix: str, bench_blocks: int = 0) -> None:
     """Serve the IOC until stdin closes or the process is signalled."""
-    from softioc import asyncio_dispatcher, softioc
+    from softioc import softioc
     from softioc.imports import callbackSetQueueSize
 
     # every record .set() is a callback; frames every 0.5 ms update several
     # records each, more than the default ring of 2000 holds in a burst (a
     # lost callback can leave a put never completed)
     callbackSetQueueSize(CALLBACK_QUEUE)
-    dispatcher = asyncio_dispatcher.AsyncioDispatcher()
+    from .dispatch import Dispatcher
+
+    dispatcher = Dispatcher()
     things = build(prefix, bench_blocks)
     softioc.iocInit(dispatcher, enable_pva=False)
     print(f"{READY}: prefix {prefix}, {len(things)} devices", flush=True)

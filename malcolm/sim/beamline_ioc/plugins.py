@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 from softioc import builder
 
+from .dispatch import in_place
 from .pace import Throttled
 from .positions import PositionBuffer, parse_positions
 
@@ -76,7 +77,7 @@ def demand(
         initial_value=initial,
         always_update=True,
         blocking=True,  # the put completes once the readback shows it
-        on_update=readback.set,
+        on_update=in_place(readback.set),  # no hop to the IOC's loop
         **fields,
     ), readback
 

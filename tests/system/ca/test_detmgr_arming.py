@@ -50,3 +50,34 @@ def test_a_writer_failure_ends_both_chains_and_the_next_configure_arms(ioc, tmp_
             await process.stop()
 
     run(scenario())
+
+
+def test_the_plugin_is_cleared_before_the_positions_sent_with_it_load(ioc, tmp_path):
+    # the clearing and the XML go at once: the plugin holds each configure's
+    # positions alone (not 5 + 7, nor none), and the frames get their ids
+    process = make_manager()
+
+    async def scenario():
+        det = await started(process)
+        part = next(
+            p
+            for p in process.get_controller("DET").parts.values()
+            if isinstance(p, DetectorManagerPart)
+        )
+        try:
+            for points in (5, 7, 3):
+                params = {"generator": line(points), "fileDir": str(tmp_path),
+                          "formatName": f"cleared{points}"}  # fmt: skip
+                await process.post(["DET", "configure"], params)
+                assert det.state.value == "Armed"
+                assert part.pos.positions.value == points
+                if points != 3:
+                    await process.post(["DET", "reset"])
+            await process.post(["DET", "run"])
+            assert det.state.value == "Finished"
+            with h5py.File(tmp_path / "cleared3.h5", "r") as f:
+                assert list(f["entry/uid"][:]) == [1, 2, 3]
+        finally:
+            await process.stop()
+
+    run(scenario())
