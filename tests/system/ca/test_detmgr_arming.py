@@ -13,16 +13,21 @@ from .conftest import run
 from .test_detmgr_scans import line, make_manager, started
 
 
+def manager_part(process) -> DetectorManagerPart:
+    """The DET block's DetectorManagerPart."""
+    return next(
+        p
+        for p in process.get_controller("DET").parts.values()
+        if isinstance(p, DetectorManagerPart)
+    )
+
+
 def test_a_writer_failure_ends_both_chains_and_the_next_configure_arms(ioc, tmp_path):
     process = make_manager()
 
     async def scenario():
         det = await started(process)
-        part = next(
-            p
-            for p in process.get_controller("DET").parts.values()
-            if isinstance(p, DetectorManagerPart)
-        )
+        part = manager_part(process)
         try:
             bad = {"generator": line(5), "fileDir": str(tmp_path / "missing")}
             try:
@@ -59,11 +64,7 @@ def test_the_plugin_is_cleared_before_the_positions_sent_with_it_load(ioc, tmp_p
 
     async def scenario():
         det = await started(process)
-        part = next(
-            p
-            for p in process.get_controller("DET").parts.values()
-            if isinstance(p, DetectorManagerPart)
-        )
+        part = manager_part(process)
         try:
             for points in (5, 7, 3):
                 params = {"generator": line(points), "fileDir": str(tmp_path),
