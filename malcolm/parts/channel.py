@@ -19,6 +19,7 @@ condition"). The Disable phase closes the channel.
 
 from __future__ import annotations
 
+import asyncio
 import weakref
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -97,6 +98,10 @@ class ChannelPart(Part):
         self._alarm = Alarm.ok  # the alarm of the last reading
         #: the reading the subscription gave since the channel (re)connected
         self._fresh: Reading | None = None
+        #: connect() is waiting for the channel (and completes the meta)
+        self._connecting = False
+        #: the tasks completing the meta on a late connection (kept alive)
+        self._late: set[asyncio.Task[None]] = set()
 
     def attribute_meta(self) -> Meta:
         """The attribute's meta, before the channel reports anything."""
@@ -136,6 +141,7 @@ class ChannelPart(Part):
             ]
         elif channel.state is ConnectionState.CONNECTED:
             return
+        self._connecting = True
         try:
             info = await channel.connect(self.connect_timeout)
             # a channel's subscribers get a reading first on connecting: no
@@ -147,6 +153,13 @@ class ChannelPart(Part):
         except DisconnectedError as e:  # lost again at once: it keeps trying
             self._on_connection(ConnectionState.DISCONNECTED, str(e))
             return
+        finally:
+            self._connecting = False
+        self._complete_meta(info, reading)
+
+    def _complete_meta(self, info: ChannelInfo, reading: Reading) -> None:
+        """The meta completed from ``info``, then ``reading`` shown."""
+        assert self.attr is not None
         meta = self.meta_from_info(self.attr.meta, info)
         if meta is not None:
             try:
@@ -176,6 +189,15 @@ class ChannelPart(Part):
             self._registrar.report_health(None)
             if self.attr.alarm.status is AlarmStatus.CLIENT_STATUS:
                 self.attr.set_alarm(self._alarm)
+            if not self._connecting and self.channel is not None:
+                # connected after connect() gave up waiting, or again: what
+                # the channel reports now completes the meta (the IOC started
+                # after malcolm, or came back with other labels or limits)
+                task = asyncio.get_running_loop().create_task(
+                    self._late_meta(self.channel)
+                )
+                self._late.add(task)
+                task.add_done_callback(self._late.discard)
         elif state in (ConnectionState.CONNECTING, ConnectionState.DISCONNECTED):
             self._fresh = None
             names = [n for n in (self.read, self.write) if n]
@@ -183,6 +205,15 @@ class ChannelPart(Part):
             text = message if named else f"{name}: {message}"
             self.attr.set_alarm(Alarm.disconnected(text))
             self._registrar.report_health(text)
+
+    async def _late_meta(self, channel: Channel) -> None:
+        try:
+            info = await channel.connect(0)  # connected: at once
+            reading = channel.latest or await channel.get()
+        except ChannelError:
+            return  # lost again or closed: a next connection tries again
+        if channel is self.channel:
+            self._complete_meta(info, reading)
 
     # ---- values
     def _value(self, reading: Reading) -> Any:

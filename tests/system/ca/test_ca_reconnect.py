@@ -85,3 +85,32 @@ def test_a_block_started_without_its_ioc_connects_when_it_appears(sim_ioc):
             assert m2.doneMoving.value is True
 
     run(scenario(), timeout=120)
+
+
+def test_a_block_started_without_its_ioc_takes_its_labels_and_units(sim_ioc):
+    # the meta the definition leaves open (an enum's labels, a number's
+    # units, precision and limits) comes from the IOC when it appears, not
+    # only when it answers within Reset's wait
+    sim_ioc.kill()
+
+    async def scenario():
+        async with started("DRV") as process:
+            drv = process.get_block("DRV")
+            assert "not connected yet" in drv.health.value
+            sim_ioc.start()
+            await until(lambda: drv.health.value == "OK", BACK_WITHIN, "DRV health")
+            await until(
+                lambda: drv.imageMode.meta.choices != ("0", "1"),
+                LOST_WITHIN,
+                "the IOC's labels for imageMode",
+            )
+            assert drv.imageMode.meta.choices == ("Single", "Multiple", "Continuous")
+            assert drv.imageMode.value == "Single"
+            display = drv.exposure.meta.display
+            assert (display["units"], display["precision"]) == ("s", 4)
+            assert (display["limitLow"], display["limitHigh"]) == (0.0, 100.0)
+            await process.put(["DRV", "imageMode"], "Multiple")
+            assert drv.imageMode.value == "Multiple"
+            await process.put(["DRV", "imageMode"], "Single")
+
+    run(scenario(), timeout=120)
