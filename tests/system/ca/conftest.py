@@ -51,6 +51,17 @@ def ioc(sim_ioc: SimIOC) -> SimIOC:
     return sim_ioc
 
 
+@pytest.fixture
+def fresh_ioc(sim_ioc: SimIOC) -> SimIOC:
+    """The session's IOC started anew, every PV at its default: for a test
+    that reads the defaults, whatever earlier tests put (the managers'
+    scans leave the driver with their exposure and trigger mode)."""
+    if sim_ioc.alive:
+        sim_ioc.stop()
+    sim_ioc.start()
+    return sim_ioc
+
+
 def make_process(*mris: str) -> Process:
     """A process with the hardware blocks ``mris`` (all if none), on pyepics."""
     process = Process("ca-test", channels={"ca": "pyepics"})

@@ -17,7 +17,7 @@ from malcolm.core import (
 from .conftest import PREFIX, follow, run, spawn, started, until
 
 
-def test_every_attribute_type_is_read_from_the_ioc(ioc):
+def test_every_attribute_type_is_read_from_the_ioc(fresh_ioc):
     async def scenario():
         async with started() as process:
             for mri in ("DRV", "POS", "HDF", "M1", "M2", "TRAJ"):
@@ -91,7 +91,7 @@ def test_a_put_completes_and_shows_the_readback(ioc):
     run(scenario())
 
 
-def test_monitors_follow_changes_made_by_the_ioc(ioc):
+def test_monitors_follow_changes_made_by_the_ioc(fresh_ioc):
     async def scenario():
         async with started("DRV", "M1") as process:
             drv = process.get_block("DRV")
