@@ -30,8 +30,7 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 from benchmarks.table import Row, median, render
-from malcolm.config.build import build_definition
-from malcolm.controllers.runnable import RunnableController
+from malcolm.beamline import add_beamline_manager
 from malcolm.core import NumberMeta, Process, StringMeta
 from malcolm.fsm import RunnableDevice
 from malcolm.parts import Part, PartRegistrar
@@ -81,14 +80,9 @@ class MemoryDevicePart(Part):
 
 async def make_process() -> Process:
     process = Process()
-    for mri, kind in DEVICES.items():
-        part = MemoryDevicePart(mri.lower(), kind)
-        process.add_controller(RunnableController(f"BL:{mri}", [part]))
-    build_definition(
-        "beamline.BeamlineManager",
-        {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
-        mri="BL",
-        process=process,
+    add_beamline_manager(
+        process,
+        {mri: [MemoryDevicePart(mri.lower(), kind)] for mri, kind in DEVICES.items()},
     )
     await process.start()
     return process

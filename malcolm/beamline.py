@@ -21,6 +21,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -30,6 +31,27 @@ BEAMLINE_PROCESS_FILE = (
 )
 HELP = "serve a simulated beamline: IOC, Zebra2, device managers and SCAN"
 _ZEBRA_READY = re.compile(r"control (\S+):(\d+) data (\S+):(\d+)")
+
+
+def add_beamline_manager(
+    process: Any, devices: Mapping[str, Sequence[Any]], mri: str = "BL"
+) -> None:
+    """Add to ``process`` a BeamlineManager ``mri`` over the device blocks
+    ``<mri>:DET``, ``<mri>:MOTORS`` and ``<mri>:ZEBRA``, each a
+    RunnableController of the parts ``devices`` gives for ``DET``,
+    ``MOTORS`` and ``ZEBRA``: the co-ordination layer without hardware (for
+    tests of one's own device parts, and benchmarks.coordination)."""
+    from malcolm.config.build import build_definition
+    from malcolm.controllers.runnable import RunnableController
+
+    for name, parts in devices.items():
+        process.add_controller(RunnableController(f"{mri}:{name}", list(parts)))
+    build_definition(
+        "beamline.BeamlineManager",
+        {"det": f"{mri}:DET", "motor": f"{mri}:MOTORS", "zebra": f"{mri}:ZEBRA"},
+        mri=mri,
+        process=process,
+    )
 
 
 class SimZebra2:

@@ -14,8 +14,7 @@ from typing import Any
 
 import pytest
 
-from malcolm.config.build import build_definition
-from malcolm.controllers.runnable import RunnableController
+from malcolm.beamline import add_beamline_manager
 from malcolm.controllers.validated import Validated, same
 from malcolm.core import BadValueError, MalcolmError, NumberMeta, Process
 from malcolm.fsm import RunnableDevice
@@ -61,14 +60,10 @@ async def make(tmp_path: Path, least: float | None = None) -> tuple[Process, dic
         "MOTORS": FakeDevicePart("motors", "x.value", "position_value"),
         "ZEBRA": FakeDevicePart("zebra", "panda.INENC1.VAL", "monitor"),
     }
-    for mri, fake in fakes.items():
+    for mri in fakes:
         checks[mri] = CheckPart("check", least if mri == "DET" else None)
-        process.add_controller(RunnableController(f"BL:{mri}", [fake, checks[mri]]))
-    build_definition(
-        "beamline.BeamlineManager",
-        {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
-        mri="BL",
-        process=process,
+    add_beamline_manager(
+        process, {mri: [fake, checks[mri]] for mri, fake in fakes.items()}
     )
     await process.start()
     return process, checks

@@ -14,8 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
-from malcolm.config.build import build_definition
-from malcolm.controllers.runnable import RunnableController
+from malcolm.beamline import add_beamline_manager
 from malcolm.core import BadValueError, MalcolmError, NumberMeta, Process, StringMeta
 from malcolm.fsm import RunnableDevice
 from malcolm.hooks import Task
@@ -115,14 +114,7 @@ async def make(tmp_path: Path) -> tuple[Process, dict[str, FakeDevicePart]]:
         "MOTORS": FakeDevicePart("motors", "x.value", "position_value"),
         "ZEBRA": FakeDevicePart("zebra", "panda.INENC1.VAL", "monitor"),
     }
-    for mri, part in devices.items():
-        process.add_controller(RunnableController(f"BL:{mri}", [part]))
-    build_definition(
-        "beamline.BeamlineManager",
-        {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
-        mri="BL",
-        process=process,
-    )
+    add_beamline_manager(process, {mri: [part] for mri, part in devices.items()})
     await process.start()
     ORDER.clear()
     SEEKS.clear()
@@ -351,14 +343,7 @@ def test_the_motion_checks_the_duration_the_detector_raised(tmp_path, delay):
                        speeds],
             "ZEBRA": [FakeDevicePart("zebra", "panda.INENC1.VAL", "monitor")],
         }  # fmt: skip
-        for mri, device_parts in parts.items():
-            process.add_controller(RunnableController(f"BL:{mri}", device_parts))
-        build_definition(
-            "beamline.BeamlineManager",
-            {"det": "BL:DET", "motor": "BL:MOTORS", "zebra": "BL:ZEBRA"},
-            mri="BL",
-            process=process,
-        )
+        add_beamline_manager(process, parts)
         await process.start()
         gen = spiral()  # 1 ms a point
         validated = await process.post(
