@@ -184,15 +184,16 @@ class Channel(ABC):
         if self._state is not ConnectionState.CONNECTED:
             waiter: asyncio.Future[None] = loop.create_future()
             self._waiters.append(waiter)
-            try:
-                await asyncio.wait_for(waiter, timeout)
-            except TimeoutError:
-                raise ChannelTimeoutError(
-                    f"{self.name}: not connected within {timeout} s ({self._message});"
-                    " still trying"
-                ) from None
-            finally:
-                _discard(self._waiters, waiter)
+            await _wait(
+                waiter,
+                timeout,
+                lambda: (
+                    f"{self.name}: not connected within {timeout} s"
+                    f" ({self._message}); still trying"
+                ),
+                self._waiters,
+                waiter,
+            )
         return await self._info()
 
     @abstractmethod
@@ -234,15 +235,16 @@ class Channel(ABC):
             waiter: asyncio.Future[None] = self._loop.create_future()
             entry = (target, waiter)
             self._catching_up.append(entry)
-            try:
-                await asyncio.wait_for(waiter, timeout)
-            except TimeoutError:
-                raise ChannelTimeoutError(
+            await _wait(
+                waiter,
+                timeout,
+                lambda: (
                     f"{self.read}: no monitor event brought {target.value!r}"
                     f" (what a get read) within {timeout} s"
-                ) from None
-            finally:
-                _discard(self._catching_up, entry)
+                ),
+                self._catching_up,
+                entry,
+            )
         latest = self._latest
         if latest is None:  # lost since it caught up
             self.check_connected()
@@ -437,6 +439,23 @@ def same_value(a: Any, b: Any) -> bool:
         return bool(a == b)
     except Exception:
         return False
+
+
+async def _wait(
+    waiter: asyncio.Future[None],
+    timeout: float | None,
+    why: Callable[[], str],
+    waiting: list[Any],
+    entry: Any,
+) -> None:
+    """Wait for ``waiter`` at most ``timeout`` s (ChannelTimeoutError saying
+    ``why()`` after), then take ``entry`` off the list ``waiting``."""
+    try:
+        await asyncio.wait_for(waiter, timeout)
+    except TimeoutError:
+        raise ChannelTimeoutError(why()) from None
+    finally:
+        _discard(waiting, entry)
 
 
 def _discard(items: list[Any], item: Any) -> None:
