@@ -406,14 +406,26 @@ def _marshal_scalar(value: float, ftype: int) -> Any:
 #: callbacks of puts in flight: kept alive until libca calls them
 _pending_puts: dict[int, ctypes.py_object] = {}
 
+#: libca's status for a put cut off by the loss of its circuit (caerr.h's
+#: ECA_DISCONN): the IOC went away, the value was not refused
+ECA_DISCONN = 192
+
+#: how a put's error starts when its circuit was lost under it
+PUT_DISCONNECTED = "disconnected during the put"
+
 
 def _on_put(args: Any) -> None:
     with _pending_lock:
         holder = _pending_puts.pop(id(args.usr), None)
     callback = args.usr
     if callable(callback):
-        ok = args.status == dbr.ECA_NORMAL
-        callback(None, "" if ok else f"put failed: {ca.message(args.status)}")
+        status = args.status
+        if status == dbr.ECA_NORMAL:
+            callback(None, "")
+        elif status == ECA_DISCONN:
+            callback(None, f"{PUT_DISCONNECTED}: {ca.message(status)}")
+        else:
+            callback(None, f"put failed: {ca.message(status)}")
     del holder
 
 
