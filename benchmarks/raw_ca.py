@@ -38,7 +38,7 @@ class RawCA:
     """Connected PVs by name: puts with completion, gets and monitors."""
 
     def __init__(self, names: Iterable[str], monitored: Iterable[str] = ()) -> None:
-        from epics import ca, dbr
+        from epics import ca
 
         self._ca = ca
         ca.use_initial_context()
@@ -53,10 +53,7 @@ class RawCA:
         self._types = {
             n: (ca.field_type(c), ca.element_count(c)) for n, c in self.chids.items()
         }
-        self._cb_put = dbr.make_callback(self._on_put, dbr.event_handler_args)
-        self._pending: dict[int, Any] = {}
         self._failed: list[str] = []
-        self._lock = threading.Lock()
         self._changed = threading.Condition()
         self.latest: dict[str, Any] = {}
         self._subscriptions = [
@@ -80,16 +77,6 @@ class RawCA:
             self.latest[pvname] = value
             self._changed.notify_all()
 
-    def _on_put(self, args: Any) -> None:
-        from epics import dbr
-
-        done = args.usr
-        with self._lock:
-            self._pending.pop(id(done), None)
-        if args.status != dbr.ECA_NORMAL:
-            self._failed.append(str(args.status))
-        done.set()
-
     # ---- what a chain does (its own thread)
     def put(self, name: str, value: Any) -> threading.Event:
         """Put with completion; the event is set once the IOC completed it."""
@@ -98,13 +85,16 @@ class RawCA:
         ftype, count = self._types[name]
         data, n = _marshal(value, ftype, count)
         done = threading.Event()
-        holder = ctypes.py_object(done)
-        with self._lock:
-            self._pending[id(done)] = (holder, data)
+        token = (done, self._failed)
+        holder = ctypes.py_object(token)
+        with _pending_lock:
+            _pending[id(token)] = (holder, data)
         status = ca.libca.ca_array_put_callback(
-            ftype, n, self.chids[name], data, self._cb_put, holder
+            ftype, n, self.chids[name], data, _put_callback(), holder
         )
         if status != 1:  # ECA_NORMAL
+            with _pending_lock:
+                _pending.pop(id(token), None)
             raise RuntimeError(f"{name}: put of {value!r} refused ({status})")
         ca.libca.ca_flush_io()
         return done
@@ -136,6 +126,38 @@ class RawCA:
                 left = deadline - time.monotonic()
                 if left <= 0 or not self._changed.wait(left):
                     raise TimeoutError(f"{name} is {self.latest.get(name)!r}")
+
+
+#: puts in flight, by id of their token: (its py_object, the data), kept
+#: until libca calls back, whatever became of the RawCA that sent them (a
+#: busy put, the writer's Capture, may complete after its RawCA is closed)
+_pending: dict[int, tuple[Any, Any]] = {}
+_pending_lock = threading.Lock()
+#: the ctypes put callback libca calls: made once, never freed
+_cb_put: Any = None
+
+
+def _put_callback() -> Any:
+    global _cb_put
+    if _cb_put is None:
+        from epics import dbr
+
+        _cb_put = dbr.make_callback(_on_put, dbr.event_handler_args)
+    return _cb_put
+
+
+def _on_put(args: Any) -> None:
+    """A put's completion (libca's thread): note a failure, set its event."""
+    from epics import dbr
+
+    token = args.usr
+    with _pending_lock:
+        kept = _pending.pop(id(token), None)
+    done, failed = token
+    if args.status != dbr.ECA_NORMAL:
+        failed.append(str(args.status))
+    done.set()
+    del kept
 
 
 def _marshal(value: Any, ftype: int, count: int) -> tuple[Any, int]:

@@ -90,19 +90,27 @@ _batch_xml = functools.lru_cache(maxsize=8)(positions_xml)
 class FrameClock:
     """When the last new frame of a run was seen: ``count`` frames of the
     scan so far (``first`` at the run's start), at loop time ``since``
-    (wall-clock time ``wall``), when the driver's frame counter read
-    ``made`` (its ``arrayCounter``)."""
+    (wall-clock time ``wall``); ``made``: the driver's frame counter (its
+    ``arrayCounter``) at that frame, its value at the run's start plus the
+    frames counted since.
+
+    ``made`` is not the counter read when the count came: the driver's
+    counter and the counting plugin's are posted independently (by a real
+    IOC as by the simulation, each at most every few ms), so the plugin's
+    count may arrive first. A writer's 31 seen while ``arrayCounter`` still
+    read 29 made a stalled run say "made 2 frames since: its frames do not
+    reach the writer", when all 31 had reached it."""
 
     def __init__(self, first: int, made: int = 0) -> None:
         self.first = self.count = first
-        self.made = made
+        self.start_made = self.made = made
         self.since = asyncio.get_running_loop().time()
         self.wall = time.time()
 
-    def saw(self, count: int, made: int = 0) -> None:
+    def saw(self, count: int) -> None:
         if count > self.count:
             self.count = count
-            self.made = made
+            self.made = self.start_made + count - self.first
             self.since = asyncio.get_running_loop().time()
             self.wall = time.time()
 
@@ -589,7 +597,7 @@ class DetectorManagerPart(Part):
             frames = FrameClock(start, self._made())
 
             def on_frames(n: Any) -> None:
-                frames.saw(start + int(n), self._made())
+                frames.saw(start + int(n))
                 task.report_progress(min(start + int(n), end))
 
             ids = [

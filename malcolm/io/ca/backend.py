@@ -434,7 +434,12 @@ class PyepicsChannel(Channel):
         fut.add_done_callback(self._pending.discard)
         return fut
 
-    def _settle(self, fut: asyncio.Future[Any], result: Any, error: str) -> None:
+    def _settle(
+        self, fut: asyncio.Future[Any], result: Any, error: str, pv: str = ""
+    ) -> None:
+        """Settle a get's or put's future: ``error`` "" is done; ``put
+        failed`` a ChannelError; anything else a DisconnectedError, naming
+        ``pv`` (the PV asked: a put's write PV; the readback by default)."""
         if fut.done():
             return
         if error.startswith("put failed"):
@@ -442,7 +447,7 @@ class PyepicsChannel(Channel):
         elif error.startswith(PUT_DISCONNECTED):
             fut.set_exception(DisconnectedError(f"{self.write}: {error}"))
         elif error:
-            fut.set_exception(DisconnectedError(f"{self.read}: {error}"))
+            fut.set_exception(DisconnectedError(f"{pv or self.read}: {error}"))
         else:
             fut.set_result(result)
 
@@ -468,7 +473,7 @@ class PyepicsChannel(Channel):
         fut = self._future()
 
         def done(_: Any, error: str) -> None:
-            self._on_loop(self._settle, fut, None, error)
+            self._on_loop(self._settle, fut, None, error, self.write)
 
         try:
             self._links[self.write].put(converted, done)
@@ -494,7 +499,7 @@ class PyepicsChannel(Channel):
 
         def done(_: Any, error: str) -> None:
             if error:
-                self._on_loop(self._settle, fut, None, error)
+                self._on_loop(self._settle, fut, None, error, self.write)
             else:
                 readback.get(answered)  # now, in libca's thread
 

@@ -338,10 +338,10 @@ class Link:
         with _pending_lock:
             _pending_puts[id(callback)] = uarg
         status = ca.libca.ca_array_put_callback(ftype, n, chid, data, _CB_PUT, uarg)
-        if status != dbr.ECA_NORMAL:
+        if status != dbr.ECA_NORMAL:  # refused before it was sent
             with _pending_lock:
                 _pending_puts.pop(id(callback), None)
-            callback(None, ca.message(status))
+            callback(None, put_error(status))
             return
         flush_soon()
 
@@ -414,18 +414,25 @@ ECA_DISCONN = 192
 PUT_DISCONNECTED = "disconnected during the put"
 
 
+def put_error(status: int) -> str:
+    """What a put's callback is told of libca's ``status``, in its
+    completion or when ``ca_array_put_callback`` refuses it at once: "" if
+    it completed; the lost circuit (ECA_DISCONN: libca may know before the
+    connection callback says so) as :data:`PUT_DISCONNECTED`; anything
+    else (no write access...) as ``put failed``."""
+    if status == dbr.ECA_NORMAL:
+        return ""
+    if status == ECA_DISCONN:
+        return f"{PUT_DISCONNECTED}: {ca.message(status)}"
+    return f"put failed: {ca.message(status)}"
+
+
 def _on_put(args: Any) -> None:
     with _pending_lock:
         holder = _pending_puts.pop(id(args.usr), None)
     callback = args.usr
     if callable(callback):
-        status = args.status
-        if status == dbr.ECA_NORMAL:
-            callback(None, "")
-        elif status == ECA_DISCONN:
-            callback(None, f"{PUT_DISCONNECTED}: {ca.message(status)}")
-        else:
-            callback(None, f"put failed: {ca.message(status)}")
+        callback(None, put_error(args.status))
     del holder
 
 

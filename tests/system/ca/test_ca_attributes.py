@@ -155,6 +155,10 @@ def test_a_motor_stop_action_stops_a_move(ioc):
     async def scenario():
         async with started("M2") as process:
             m2 = process.get_block("M2")
+            # from 0, wherever an earlier test left the session IOC's M2 (the
+            # trajectory test of test_ca_devices leaves it at -4)
+            await process.put(["M2", "velocity"], 1000.0)
+            await process.put(["M2", "position"], 0.0)
             await process.put(["M2", "velocity"], 5.0)
             moving = spawn(process.put(["M2", "position"], 50.0))
             await until(lambda: m2.doneMoving.value is False, what="moving")

@@ -99,6 +99,10 @@ def test_a_file_that_cannot_be_opened_is_reported(ioc, tmp_path):
         async with started("HDF") as process:
             await process.put(["HDF", "filePath"], f"{tmp_path}/no/such/dir/")
             await process.put(["HDF", "fileName"], "x")
+            # the file opened at Capture, whatever an earlier test left (a
+            # manager's resumed run leaves LazyOpen on: the capture then
+            # waited for a first frame that never came)
+            await process.put(["HDF", "lazyOpen"], False)
             await process.put(["HDF", "capture"], True)
             hdf = process.get_block("HDF")
             assert hdf.writeStatus.value == "Write error"

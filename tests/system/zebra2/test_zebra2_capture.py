@@ -46,17 +46,22 @@ SETUP = [
 FIELDS = ["COUNTER1.OUT Value", "COUNTER2.OUT Min Max Mean", "PCAP.TS_TRIG Value"]
 
 
-async def _watch(sim) -> list:
-    """Everything a second data client receives in the next experiment."""
+async def _watch(sim) -> asyncio.Future[list]:
+    """A second data client, connected (the box said ``OK``: it will be sent
+    the next experiment), and the task of everything it receives in it."""
     client = DataClient(sim.host, sim.data_port, scaled=True)
     await client.connect()
-    got = []
-    try:
-        async for item in client.experiment():
-            got.append(item)
-    finally:
-        await client.close()
-    return got
+
+    async def receive() -> list:
+        got = []
+        try:
+            async for item in client.experiment():
+                got.append(item)
+        finally:
+            await client.close()
+        return got
+
+    return asyncio.ensure_future(receive())
 
 
 def test_a_pcap_scan_of_n_frames_writes_n_rows_per_column(sim, tmp_path):
@@ -75,8 +80,7 @@ def test_a_pcap_scan_of_n_frames_writes_n_rows_per_column(sim, tmp_path):
         try:
             for command in SETUP:
                 assert await raw.ask(command) == ["OK"], command
-            watcher = asyncio.ensure_future(_watch(sim))
-            await asyncio.sleep(0.2)  # its data connection is made
+            watcher = await _watch(sim)  # connected before the arm
             generator = gda.compound(gda.line("x", N), duration=0.02)
             await process.post(
                 [MRI, "configure"],
