@@ -35,6 +35,7 @@ from malcolm.core import (
     Process,
     StringMeta,
 )
+from malcolm.core.callplan import plan_args
 from malcolm.fsm import Model, load_model
 from malcolm.hooks import Hook, Task
 from malcolm.hooks.signature import timeout_problem
@@ -280,7 +281,11 @@ class Controller(Interpreter, Operations, Health):
     async def call(self, name: str, params: Mapping[str, Any] | None = None) -> Any:
         """Call method ``name``: arguments checked, then the model's rule."""
         method = self.block.method(name)
-        args = method.meta.validate_args(f"{self.mri}.{name}", params or {})
+        # meta.validate_args's work, by the plan of the meta as it is now
+        plan = method.args_plan
+        if plan is None or (args := plan(method.meta, params)) is None:
+            plan = method.args_plan = plan_args(method.meta, f"{self.mri}.{name}")
+            args = plan(method.meta, params)
         allowed = self.model.methods.get(name)  # check_allowed's test, in line
         if allowed is not None and self._state not in allowed:
             self.check_allowed(name)  # raises, naming the state

@@ -1,0 +1,162 @@
+"""A method's call plan (malcolm.core.callplan and Controller.call): the
+same arguments and errors as MethodMeta.validate_args, and a meta changed
+at run time used at once."""
+
+from __future__ import annotations
+
+import asyncio
+import copy
+from typing import Any
+
+import pytest
+
+from malcolm.controllers.base import Controller
+from malcolm.core import (
+    BadValueError,
+    BooleanMeta,
+    ChoiceMeta,
+    MapMeta,
+    MethodMeta,
+    NumberMeta,
+    Process,
+    StringArrayMeta,
+    StringMeta,
+)
+from malcolm.core.callplan import plan_args
+from malcolm.parts import Part
+
+
+def _meta() -> MethodMeta:
+    return MethodMeta(
+        MapMeta(
+            {
+                "exposure": NumberMeta("float64", display={"limitLow": 0.0,
+                                                           "limitHigh": 10.0}),
+                "frames": NumberMeta("uint32"),
+                "axes": StringArrayMeta(),
+                "name": StringMeta(),
+                "mode": ChoiceMeta(["a", "b"]),
+                "flag": BooleanMeta(),
+                "nothing": StringMeta(),
+                "odd": NumberMeta("int8"),
+            },
+            required=["exposure"],
+        ),
+        defaults={"frames": 1, "axes": ["x", "y"], "nothing": None, "odd": "zz"},
+    )  # fmt: skip
+
+
+CASES: list[Any] = [
+    {},
+    None,
+    {"exposure": 1},
+    {"exposure": 1.5, "name": "n", "mode": 1, "flag": "yes"},
+    {"exposure": "0.1", "frames": None, "axes": ("a",)},
+    {"exposure": 11.0},
+    {"exposure": 1, "bogus": 2},
+    {"exposure": "fast"},
+    {"exposure": 1, "frames": -1},
+    {"exposure": 1, "axes": "x"},
+    {"exposure": 1, "axes": ["x", 2]},
+    {"exposure": 1, "name": 5},
+    {"exposure": 1, "mode": "c"},
+    {"exposure": 1, "flag": 7},
+    {"exposure": 1, "odd": 300},
+    ["exposure"],
+    "exposure",
+]
+
+
+def _outcome(func: Any, params: Any) -> Any:
+    try:
+        out = func(params)
+    except BadValueError as e:
+        return ("error", str(e))
+    return ("ok", out, [type(v) for v in out.values()], list(out))
+
+
+@pytest.mark.parametrize("params", CASES)
+def test_the_plan_answers_as_validate_args(params: Any) -> None:
+    meta = _meta()
+    plan = plan_args(meta, "DET.configure")
+    expected = _outcome(lambda p: meta.validate_args("DET.configure", p or {}), params)
+    assert _outcome(lambda p: plan(meta, p), params) == expected
+
+
+def test_a_default_that_is_not_a_scalar_is_a_copy_each_call() -> None:
+    meta = MethodMeta(MapMeta({"d": MapMeta()}), defaults={"d": {"a": [1]}})
+    plan = plan_args(meta, "m")
+    first = plan(meta, {})
+    assert first == {"d": {"a": [1]}}
+    first["d"]["a"].append(2)
+    assert plan(meta, {}) == {"d": {"a": [1]}}
+    assert meta.defaults == {"d": {"a": [1]}}
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda m: setattr(m, "defaults", {"frames": 2}),
+        lambda m: m.defaults.__setitem__("frames", 3),
+        lambda m: m.defaults.pop("axes"),
+        lambda m: m.defaults.__setitem__("axes", ["z"]),
+        lambda m: setattr(m, "takes", MapMeta({"x": StringMeta()})),
+        lambda m: m.takes.elements.__setitem__("x", StringMeta()),
+        lambda m: m.takes.elements.pop("name"),
+        lambda m: setattr(m.takes, "required", ()),
+        lambda m: setattr(
+            m.takes, "elements", {**m.takes.elements, "name": StringMeta()}
+        ),
+    ],
+)
+def test_a_plan_is_none_once_its_meta_changed(change: Any) -> None:
+    meta = _meta()
+    plan = plan_args(meta, "m")
+    assert plan(meta, {"exposure": 1}) is not None
+    change(meta)
+    assert plan(meta, {"exposure": 1}) is None
+    assert plan(copy.deepcopy(meta), {"exposure": 1}) is None  # another meta
+
+
+class Greeter(Part):
+    def setup(self, registrar: Any) -> None:
+        self.method = registrar.add_method(self.greet)
+
+    def greet(self, name: str, times: int = 1) -> dict[str, Any]:
+        """Greet."""
+        return {"greeting": f"hi {name}" * times}
+
+
+def test_a_method_whose_meta_changes_at_run_time_uses_it_at_once() -> None:
+    async def main() -> None:
+        process = Process("test")
+        part = Greeter("p")
+        controller = Controller("G", [part])
+        process.add_controller(controller)
+        await process.start()
+        method = part.method
+        assert await process.post(["G", "greet"], {"name": "a"}) == {"greeting": "hi a"}
+        assert method.args_plan is not None
+        # a default given in place
+        method.meta.defaults["times"] = 2
+        assert await process.post(["G", "greet"], {"name": "a"}) == {
+            "greeting": "hi ahi a"
+        }
+        assert process.get(["G", "greet", "took", "value"]) == {
+            "name": "a",
+            "times": 2,
+        }
+        # takes replaced: a new argument's type checked, an old one unknown
+        method.meta.takes = MapMeta({"name": NumberMeta("int32")}, ["name"])
+        with pytest.raises(BadValueError, match=r"^G.greet.name: expected a number"):
+            await process.post(["G", "greet"], {"name": "a"})
+        with pytest.raises(BadValueError, match=r"^G.greet.times: unknown argument"):
+            await process.post(["G", "greet"], {"name": 1, "times": 1})
+        # the whole meta replaced (as an Editor does)
+        method.meta = MethodMeta(
+            MapMeta({"name": StringMeta()}), defaults={"name": "z"}
+        )
+        assert await process.post(["G", "greet"], {}) == {"greeting": "hi z"}
+        assert process.get(["G", "greet", "took", "value"]) == {"name": "z"}
+
+    asyncio.run(main())
