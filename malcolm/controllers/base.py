@@ -19,6 +19,8 @@ import asyncio
 import functools
 import logging
 from collections.abc import Callable, Coroutine, Generator, Mapping, Sequence
+from threading import get_ident
+from time import time_ns
 from types import CoroutineType, coroutine
 from typing import Any, ClassVar
 
@@ -29,11 +31,13 @@ from malcolm.core import (
     Block,
     ChoiceMeta,
     Method,
+    MethodLog,
     MethodMeta,
     NotAllowedError,
     NotWriteableError,
     Process,
     StringMeta,
+    TimeStamp,
 )
 from malcolm.core.callplan import plan_args
 from malcolm.fsm import Model, load_model
@@ -54,6 +58,11 @@ log = logging.getLogger(__name__)
 #: seconds a phase may take unless the model tags it ``long`` or the
 #: controller's ``phase_timeouts`` names it
 DEFAULT_PHASE_TIMEOUT = 60.0
+
+_new = object.__new__
+_OK = Alarm.ok
+#: what a MethodLog publishes as it is (fields._new_log's test)
+_PLAIN = frozenset({float, int, str, bool, type(None)})
 
 #: not yet looked up (None is a lookup's answer: no such method)
 _UNKNOWN: Any = object()
@@ -279,9 +288,15 @@ class Controller(Interpreter, Operations, Health):
             )
 
     async def call(self, name: str, params: Mapping[str, Any] | None = None) -> Any:
-        """Call method ``name``: arguments checked, then the model's rule."""
+        """Call method ``name``: arguments checked, then the model's rule.
+
+        The method's call plan (:mod:`malcolm.core.callplan`) checks the
+        arguments; on the loop, the took and returned are made here, in line
+        (what ``Method.set_took``/``set_returned`` do), the took held back
+        (:meth:`Process.hold`) to go with the returned as one batch
+        (:meth:`Process.complete`) if the method does not wait and publishes
+        nothing meanwhile."""
         method = self.block.method(name)
-        # meta.validate_args's work, by the plan of the meta as it is now
         plan = method.args_plan
         if plan is None or (args := plan(method.meta, params)) is None:
             plan = method.args_plan = plan_args(method.meta, f"{self.mri}.{name}")
@@ -289,10 +304,28 @@ class Controller(Interpreter, Operations, Health):
         allowed = self.model.methods.get(name)  # check_allowed's test, in line
         if allowed is not None and self._state not in allowed:
             self.check_allowed(name)  # raises, naming the state
-        # the took held back: with the returned in one batch if the method
-        # does not wait and nothing else is published meanwhile (Process.hold)
         process = self.process
-        method.set_took(args, process.hold if process is not None else None)
+        owner = self.block.owner
+        if process is None or owner is None or owner.thread != get_ident():
+            return await self._call(method, args)  # (set_took's loop guard)
+        # the took (set_took's work): the arguments are the plan's own dict
+        seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
+        stamp = _new(TimeStamp)  # TimeStamp.now(), in line
+        stamp.__dict__.update(
+            secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
+        )
+        took = method.took = _new(MethodLog)
+        took.__dict__ = {
+            "value": args,
+            "present": list(args),
+            "alarm": _OK,
+            "timeStamp": stamp,
+        }
+        held = process.hold(
+            self.mri,
+            [[name, "took"], took if plan.scalars else took.to_dict()],
+            [name, "returned"],
+        )
         handler = method.handler
         try:
             result = handler(**args) if handler else None
@@ -305,6 +338,52 @@ class Controller(Interpreter, Operations, Health):
                 except StopIteration as done:
                     result = done.value
                 else:  # it waits: its took is published first
+                    process.release()
+                    result = await _rest(result, step)
+        except Exception as e:
+            method.set_returned({}, Alarm.major(describe(e)))
+            raise
+        except BaseException:
+            process.release()
+            raise
+        # the returned (set_returned's work), with the took if still held
+        if (type(result) is dict or isinstance(result, Mapping)) and result:
+            value = dict(result)
+        else:
+            value = {}
+        seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
+        stamp = _new(TimeStamp)
+        stamp.__dict__.update(
+            secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
+        )
+        returned = method.returned = _new(MethodLog)
+        returned.__dict__ = {
+            "value": value,
+            "present": list(value),
+            "alarm": _OK,
+            "timeStamp": stamp,
+        }
+        if not _PLAIN.issuperset(map(type, value.values())):
+            returned = returned.to_dict()  # (what the method keeps may change)
+        process.complete(held, [[name, "returned"], returned])
+        return result
+
+    async def _call(self, method: Method, args: dict[str, Any]) -> Any:
+        """:meth:`call`'s took, handler and returned by ``Method.set_took``
+        and ``set_returned`` (off the loop: their loop guard; no process)."""
+        process = self.process
+        method.set_took(args, process.hold if process is not None else None)
+        handler = method.handler
+        try:
+            result = handler(**args) if handler else None
+            if type(result) is CoroutineType or (
+                result is not None and asyncio.iscoroutine(result)
+            ):
+                try:
+                    step = result.send(None)
+                except StopIteration as done:
+                    result = done.value
+                else:
                     if process is not None:
                         process.release()
                     result = await _rest(result, step)

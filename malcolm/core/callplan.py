@@ -22,16 +22,33 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 from .errors import BadValueError
-from .metas import _IMMUTABLE, MethodMeta, StringMeta
+from .metas import (
+    _IMMUTABLE,
+    BooleanMeta,
+    ChoiceMeta,
+    MethodMeta,
+    NumberMeta,
+    StringMeta,
+)
 
 __all__ = ["ArgsPlan", "plan_args"]
 
-#: ``args(meta, params)``: the validated arguments, or None if the plan is
-#: not ``meta``'s as it is now (make a new one)
-ArgsPlan = Callable[[MethodMeta, Any], "dict[str, Any] | None"]
+#: metas whose validate gives a scalar
+_SCALAR_METAS = (StringMeta, NumberMeta, BooleanMeta, ChoiceMeta)
+
+
+class ArgsPlan(Protocol):
+    """``plan(meta, params)``: the validated arguments, or None if the plan
+    is not ``meta``'s as it is now (make a new one)."""
+
+    #: whether the arguments it gives are all scalars (str, int, float,
+    #: bool, None): every argument's meta gives one, every default is one
+    scalars: bool
+
+    def __call__(self, meta: MethodMeta, params: Any) -> dict[str, Any] | None: ...
 
 
 def _same_defaults(snapshot: dict[str, Any]) -> Callable[[dict[str, Any]], bool]:
@@ -119,4 +136,7 @@ def plan_args(meta: MethodMeta, where: str) -> ArgsPlan:
     lines.append("    return out\n")
     exec(compile("\n".join(lines), f"<args {where}>", "exec"), ns)
     plan: ArgsPlan = ns["args"]
+    plan.scalars = all(type(m) in _SCALAR_METAS for m in elements.values()) and all(
+        type(v) in _IMMUTABLE for v in defaults.values()
+    )
     return plan

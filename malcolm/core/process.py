@@ -397,17 +397,32 @@ class Process:
                 out.append([[], value] if exists else [[]])
         return out
 
-    def hold(self, mri: str, change: Change, until: list[str]) -> None:
+    def hold(self, mri: str, change: Change, until: list[str]) -> Any:
         """Publish ``change`` of block ``mri`` a little later: with the
         block's next change if that is the one change at ``until``, as one
         batch (``change`` first), else alone just before any other change of
         any block is published, or at :meth:`release`. So a call's took and
         returned, when its method does not wait, reach each subscriber as
         one batch, and nothing published meanwhile is seen before the took.
-        On the loop; one change is held at a time (a new one releases it)."""
+        On the loop; one change is held at a time (a new one releases it).
+        Returns what :meth:`complete` takes to publish the change at
+        ``until`` with it."""
         if self._held is not None:
             self.release()
-        self._held = (mri, change, until)
+        self._held = held = (mri, change, until)
+        return held
+
+    def complete(self, held: Any, change: Change) -> None:
+        """Publish ``change`` (the one at ``until`` of what :meth:`hold`
+        gave ``held``): with the held change as one batch if that is still
+        held (nothing was published meanwhile), else alone, as the block's
+        change. (A call's returned, where it was made: ``Controller.call``;
+        what ``Block.notify`` and :meth:`_on_changes` would do with it.)"""
+        if self._held is held:
+            self._held = None
+            self._on_logs(held[0], [held[1], change], held[2][0])
+        else:
+            self._on_changes(held[0], [change])
 
     def release(self) -> None:
         """Publish the change :meth:`hold` keeps back, if any, now."""

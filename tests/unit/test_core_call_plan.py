@@ -160,3 +160,112 @@ def test_a_method_whose_meta_changes_at_run_time_uses_it_at_once() -> None:
         assert process.get(["G", "greet", "took", "value"]) == {"name": "z"}
 
     asyncio.run(main())
+
+
+class Kinds(Part):
+    """Methods of every kind of arguments and result."""
+
+    def setup(self, registrar: Any) -> None:
+        self.kept: list[Any] = []
+        for func in (self.listed, self.plain, self.nothing, self.array, self.later):
+            registrar.add_method(func)
+        registrar.add_method(
+            self.axes,
+            meta=MethodMeta(
+                MapMeta({"names": StringArrayMeta()}), defaults={"names": ["x"]}
+            ),
+        )
+
+    def axes(self, names: Any) -> dict[str, Any]:
+        """An array argument (its took is plain data)."""
+        return {"n": len(names)}
+
+    def listed(self, x: float = 1.0) -> dict[str, Any]:
+        """A result that holds a list the method keeps."""
+        self.kept = [1, 2]
+        return {"items": self.kept}
+
+    def plain(self, x: float = 1.0) -> dict[str, Any]:
+        return {"y": x * 2}
+
+    def nothing(self) -> list[int]:
+        """A result that is not a mapping."""
+        return [1, 2]
+
+    def array(self) -> Any:
+        import numpy
+
+        return numpy.array([1.0, 2.0])
+
+    async def later(self, x: float = 1.0) -> dict[str, Any]:
+        await asyncio.sleep(0.001)
+        return {"y": x}
+
+
+def test_every_kind_of_call_publishes_its_logs_as_before() -> None:
+    async def main() -> None:
+        process = Process("test")
+        part = Kinds("p")
+        process.add_controller(Controller("K", [part]))
+        await process.start()
+        seen: list[Any] = []
+        below: list[Any] = []
+        process.subscribe(["K"], seen.append)
+        process.subscribe(["K"], lambda c: None, below=below.append)
+        seen.clear()
+        block = process.get_block("K")
+        for name, params, returned in [
+            ("axes", {}, {"n": 1}),
+            ("axes", {"names": ["a", "b"]}, {"n": 2}),
+            ("listed", {}, {"items": [1, 2]}),
+            ("plain", {"x": 2}, {"y": 4.0}),
+            ("nothing", None, {}),
+            ("array", {}, {}),
+            ("later", {"x": 3}, {"y": 3.0}),
+        ]:
+            seen.clear()
+            below.clear()
+            await process.post(["K", name], params)
+            method = block[name]
+            assert method.returned.value == returned
+            changes = [c for batch in seen for c in batch]
+            assert changes == [
+                [[name, "took"], method.took.to_dict()],
+                [[name, "returned"], method.returned.to_dict()],
+            ]
+            assert len(seen) == (2 if name == "later" else 1)
+            mine = [c for batch in below for c in batch]
+            for (_path, data), (_, plain) in zip(mine, changes, strict=True):
+                # a below subscriber: the log itself only when it is all scalars
+                assert (data if isinstance(data, dict) else data.to_dict()) == plain
+            assert process.get(["K", name, "took"]) == method.took.to_dict()
+        part.kept.append(3)  # the method's list changes: not what was published
+        assert [c for b in seen for c in b] != []
+        assert block.listed.returned.to_dict()["value"] == {"items": [1, 2, 3]}
+
+    asyncio.run(main())
+
+
+def test_a_call_off_the_loop_is_refused_by_the_loop_guard() -> None:
+    from malcolm.core import OffLoopError, enable_loop_guard
+    from malcolm.core.threads import guard_trips
+
+    async def main() -> None:
+        process = Process("test")
+        part = Kinds("p")
+        controller = Controller("K", [part])
+        process.add_controller(controller)
+        await process.start()
+        block = process.get_block("K")
+        before = block.plain.took
+
+        def elsewhere() -> None:
+            asyncio.run(controller.call("plain", {"x": 1}))
+
+        enable_loop_guard(True)
+        with pytest.raises(OffLoopError, match=r"K\.plain"):
+            await asyncio.get_running_loop().run_in_executor(None, elsewhere)
+        assert block.plain.took is before
+        guard_trips.clear()  # tripped on purpose
+
+    asyncio.run(main())
