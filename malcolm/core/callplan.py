@@ -86,17 +86,23 @@ def plan_args(meta: MethodMeta, where: str) -> ArgsPlan:
         "BadValueError": BadValueError,
     }
     if all(type(v) in _IMMUTABLE for v in defaults.values()):
-        ns["DEFAULTS"] = dict(defaults)
-        same_defaults = "meta.defaults != DEFAULTS"
+        # one comparison in C (meta and takes by identity: no __eq__)
+        ns["SNAPSHOT"] = (meta, takes, elements, ns["REQUIRED"], dict(defaults))
+        stale = [
+            "    if (meta, takes, takes.elements, takes.required, meta.defaults)"
+            " != SNAPSHOT:"
+        ]
     else:
         ns["SAME_DEFAULTS"] = _same_defaults(dict(defaults))
-        same_defaults = "not SAME_DEFAULTS(meta.defaults)"
+        stale = [
+            "    if (meta is not META or takes is not TAKES"
+            " or takes.elements != ELEMENTS or takes.required != REQUIRED"
+            " or not SAME_DEFAULTS(meta.defaults)):"
+        ]
     lines = [
         "def args(meta, params):",
         "    takes = meta.takes",
-        "    if (meta is not META or takes is not TAKES"
-        " or takes.elements != ELEMENTS or takes.required != REQUIRED"
-        f" or {same_defaults}):",
+        *stale,
         "        return None",
         "    if type(params) is not dict or not NAMES >= params.keys():",
         "        return SLOW(WHERE, params or {})",

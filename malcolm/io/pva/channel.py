@@ -194,24 +194,23 @@ class _Channel(ChannelRequests):
         try:
             if self.closed:
                 return
-            if self._data is not None:
+            pair = self._pairs.get(changes[0][0][0])
+            if pair is None and self._data is not None:
                 name = changes[0][0][0]
-                pair = self._pairs.get(name)
-                if pair is None:
-                    pair = self._pairs[name] = self._log_pair(name)
-                if pair:
-                    value = self._update  # self._next_update(), in line
-                    if value is None:
-                        value = self._update = Value(self.type)
-                    else:
-                        value.unmark()
-                    try:
-                        if pair(value, changes):
-                            _post(self.pv, value)
-                            return
-                    except (AttributeError, TypeError, ValueError):
-                        pass  # (not the core's logs: as _on_below takes them)
-                    self._last.clear()  # (leaves it set, not posted)
+                pair = self._pairs[name] = self._log_pair(name)
+            if pair:  # (made once the channel has its data)
+                value = self._update  # self._next_update(), in line
+                if value is None:
+                    value = self._update = Value(self.type)
+                else:
+                    value.unmark()
+                try:
+                    if pair(value, changes):
+                        _post(self.pv, value)
+                        return
+                except (AttributeError, TypeError, ValueError):
+                    pass  # (not the core's logs: as _on_below takes them)
+                self._last.clear()  # (leaves it set, not posted)
             self._on_below(changes)
         except Exception as e:  # a monitor must never stop the process
             log.exception("pva %s: %s", self.name, error_text(e))
