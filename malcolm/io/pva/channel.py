@@ -405,10 +405,11 @@ class _Handler:
             self.chan.put(pv, op)
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
-        if self.chan is None:
+        chan = self.chan
+        if chan is None:
             op.done(error="NotFoundError: the channel is closed")
-        else:
-            self.chan.rpc(pv, op)
+        else:  # chan.rpc(pv, op), in line: once per call
+            chan.server._ops.start(op, chan._rpc(op))
 
 
 def _apply_changes(data: Any, changes: list[list[Any]]) -> Any:
