@@ -13,7 +13,6 @@ subprocesses. docs/beamline.md walks through a scan.
 from __future__ import annotations
 
 import argparse
-import asyncio
 import os
 import re
 import signal
@@ -163,6 +162,7 @@ def cmd_beamline(args: argparse.Namespace) -> int:
     from malcolm.config import ConfigError
     from malcolm.core import long_lived
     from malcolm.embed import serve
+    from malcolm.embed.loop import run as run_loop
     from malcolm.sim.beamline_ioc import SimIOC, ca_environment
 
     logging.basicConfig(
@@ -215,7 +215,7 @@ def cmd_beamline(args: argparse.Namespace) -> int:
                 flush=True,
             )
 
-        asyncio.run(
+        run_loop(
             serve(
                 process,
                 ready,

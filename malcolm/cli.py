@@ -36,14 +36,13 @@ def cmd_points(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     """Serve the built-in demo process (simulated hardware)."""
-    import asyncio
-
     from malcolm.demo import demo_generator, serve_demo
+    from malcolm.embed.loop import run as run_loop
 
     generator = demo_generator(duration=args.duration) if args.scan else None
     try:
         zebra2 = getattr(args, "zebra2", False)
-        return asyncio.run(
+        return run_loop(
             serve_demo(
                 args.scan,
                 generator=generator,
@@ -80,7 +79,6 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def cmd_serve(args: argparse.Namespace) -> int:
     """Build the blocks of a process file and serve them until signalled."""
-    import asyncio
     import logging
     from pathlib import Path
 
@@ -88,6 +86,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from malcolm.config import ConfigError
     from malcolm.core import long_lived
     from malcolm.embed import from_file, serve
+    from malcolm.embed.loop import run as run_loop
 
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.INFO,
@@ -129,7 +128,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         sys.stdout.flush()
 
     try:
-        asyncio.run(
+        run_loop(
             serve(
                 process,
                 ready,

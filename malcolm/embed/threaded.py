@@ -21,6 +21,7 @@ from malcolm.core import (
 from malcolm.core.errors import still_running
 
 from .files import from_file
+from .loop import new_event_loop
 from .proxies import BlockProxy
 
 # the logger of the single-module malcolm.embed, kept so records' names do not
@@ -159,7 +160,7 @@ class ThreadedProcess:
         self.stop()
 
     def _run_loop(self, ready: threading.Event) -> None:
-        loop = asyncio.new_event_loop()
+        loop = new_event_loop()
         asyncio.set_event_loop(loop)
         self.loop = loop
         loop.call_soon(ready.set)  # once the loop is running
