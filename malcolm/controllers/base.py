@@ -365,7 +365,9 @@ class Controller(Interpreter, Operations, Health):
         }
         if not _PLAIN.issuperset(map(type, value.values())):
             returned = returned.to_dict()  # (what the method keeps may change)
-        process.complete(held, [[name, "returned"], returned])
+        change = [[name, "returned"], returned]
+        if not process.complete(held, change):  # (it waited, or published)
+            self.block.notify([change])  # (a block no longer hosted: nothing)
         return result
 
     async def _call(self, method: Method, args: dict[str, Any]) -> Any:

@@ -412,17 +412,18 @@ class Process:
         self._held = held = (mri, change, until)
         return held
 
-    def complete(self, held: Any, change: Change) -> None:
+    def complete(self, held: Any, change: Change) -> bool:
         """Publish ``change`` (the one at ``until`` of what :meth:`hold`
-        gave ``held``): with the held change as one batch if that is still
-        held (nothing was published meanwhile), else alone, as the block's
-        change. (A call's returned, where it was made: ``Controller.call``;
-        what ``Block.notify`` and :meth:`_on_changes` would do with it.)"""
+        gave ``held``) with the held change as one batch if that is still
+        held (nothing was published meanwhile): what ``Block.notify`` and
+        :meth:`_on_changes` would do with it (a call's returned, where it
+        was made: ``Controller.call``). False, with nothing published, if
+        it is not: the caller publishes ``change`` as the block's."""
         if self._held is held:
             self._held = None
             self._on_logs(held[0], [held[1], change], held[2][0])
-        else:
-            self._on_changes(held[0], [change])
+            return True
+        return False
 
     def release(self) -> None:
         """Publish the change :meth:`hold` keeps back, if any, now."""

@@ -269,3 +269,26 @@ def test_a_call_off_the_loop_is_refused_by_the_loop_guard() -> None:
         guard_trips.clear()  # tripped on purpose
 
     asyncio.run(main())
+
+
+def test_a_call_of_a_block_no_longer_hosted_publishes_nothing_when_it_ends() -> None:
+    async def main() -> None:
+        process = Process("test")
+        old = Controller("K", [Kinds("p")])
+        process.add_controller(old)
+        await process.start()
+        call = asyncio.ensure_future(process.post(["K", "later"], {"x": 2}))
+        await asyncio.sleep(0)  # its took published; it waits
+        process.remove_controller("K")
+        new = Controller("K", [Kinds("p")])
+        process.add_controller(new)
+        await new.start()
+        seen: list[Any] = []
+        process.subscribe(["K"], seen.append)
+        seen.clear()
+        assert await call == {"y": 2.0}
+        assert old.block.later.returned.value == {"y": 2.0}
+        assert seen == []  # the new block's subscribers: not the old call's
+        assert process.get(["K", "later", "returned", "value"]) == {}
+
+    asyncio.run(main())
