@@ -306,26 +306,30 @@ class Controller(Interpreter, Operations, Health):
             self.check_allowed(name)  # raises, naming the state
         process = self.process
         owner = self.block.owner
-        if process is None or owner is None or owner.thread != get_ident():
-            return await self._call(method, args)  # (set_took's loop guard)
-        # the took (set_took's work): the arguments are the plan's own dict
-        seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
-        stamp = _new(TimeStamp)  # TimeStamp.now(), in line
-        stamp.__dict__.update(
-            secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
-        )
-        took = method.took = _new(MethodLog)
-        took.__dict__ = {
-            "value": args,
-            "present": list(args),
-            "alarm": _OK,
-            "timeStamp": stamp,
-        }
-        held = process.hold(
-            self.mri,
-            [[name, "took"], took if plan.scalars else took.to_dict()],
-            [name, "returned"],
-        )
+        # on the loop (the common case): the logs made here, in line; else
+        # by Method.set_took/set_returned (their loop guard refuses)
+        fast = process is not None and owner is not None and owner.thread == get_ident()
+        if fast:
+            # the took (set_took's work): the arguments are the plan's own dict
+            seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
+            stamp = _new(TimeStamp)  # TimeStamp.now(), in line
+            stamp.__dict__.update(
+                secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
+            )
+            took = method.took = _new(MethodLog)
+            took.__dict__ = {
+                "value": args,
+                "present": list(args),
+                "alarm": _OK,
+                "timeStamp": stamp,
+            }
+            held = process.hold(  # type: ignore[union-attr]
+                self.mri,
+                [[name, "took"], took if plan.scalars else took.to_dict()],
+                [name, "returned"],
+            )
+        else:
+            method.set_took(args, process.hold if process is not None else None)
         handler = method.handler
         try:
             result = handler(**args) if handler else None
@@ -338,19 +342,22 @@ class Controller(Interpreter, Operations, Health):
                 except StopIteration as done:
                     result = done.value
                 else:  # it waits: its took is published first
-                    process.release()
+                    if process is not None:
+                        process.release()
                     result = await _rest(result, step)
         except Exception as e:
             method.set_returned({}, Alarm.major(describe(e)))
             raise
         except BaseException:
-            process.release()
+            if process is not None:
+                process.release()
             raise
+        is_map = type(result) is dict or isinstance(result, Mapping)
+        if not fast:
+            method.set_returned(result if is_map else {}, Alarm.ok)
+            return result
         # the returned (set_returned's work), with the took if still held
-        if (type(result) is dict or isinstance(result, Mapping)) and result:
-            value = dict(result)
-        else:
-            value = {}
+        value = dict(result) if is_map and result else {}
         seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
         stamp = _new(TimeStamp)
         stamp.__dict__.update(
@@ -366,40 +373,8 @@ class Controller(Interpreter, Operations, Health):
         if not _PLAIN.issuperset(map(type, value.values())):
             returned = returned.to_dict()  # (what the method keeps may change)
         change = [[name, "returned"], returned]
-        if not process.complete(held, change):  # (it waited, or published)
-            self.block.notify([change])  # (a block no longer hosted: nothing)
-        return result
-
-    async def _call(self, method: Method, args: dict[str, Any]) -> Any:
-        """:meth:`call`'s took, handler and returned by ``Method.set_took``
-        and ``set_returned`` (off the loop: their loop guard; no process)."""
-        process = self.process
-        method.set_took(args, process.hold if process is not None else None)
-        handler = method.handler
-        try:
-            result = handler(**args) if handler else None
-            if type(result) is CoroutineType or (
-                result is not None and asyncio.iscoroutine(result)
-            ):
-                try:
-                    step = result.send(None)
-                except StopIteration as done:
-                    result = done.value
-                else:
-                    if process is not None:
-                        process.release()
-                    result = await _rest(result, step)
-        except Exception as e:
-            method.set_returned({}, Alarm.major(describe(e)))
-            raise
-        except BaseException:
-            if process is not None:
-                process.release()
-            raise
-        if type(result) is dict or isinstance(result, Mapping):
-            method.set_returned(result, Alarm.ok)
-        else:
-            method.set_returned({}, Alarm.ok)
+        if not process.complete(held, change):  # type: ignore[union-attr]
+            self.block.notify([change])  # (it waited or published; not hosted: -)
         return result
 
     async def put(self, name: str, value: Any) -> None:
