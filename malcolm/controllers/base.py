@@ -19,6 +19,8 @@ import asyncio
 import functools
 import logging
 from collections.abc import Callable, Coroutine, Generator, Mapping, Sequence
+from threading import get_ident
+from time import time_ns
 from types import CoroutineType, coroutine
 from typing import Any, ClassVar
 
@@ -29,12 +31,15 @@ from malcolm.core import (
     Block,
     ChoiceMeta,
     Method,
+    MethodLog,
     MethodMeta,
     NotAllowedError,
     NotWriteableError,
     Process,
     StringMeta,
+    TimeStamp,
 )
+from malcolm.core.callplan import plan_args
 from malcolm.fsm import Model, load_model
 from malcolm.hooks import Hook, Task
 from malcolm.hooks.signature import timeout_problem
@@ -53,6 +58,11 @@ log = logging.getLogger(__name__)
 #: seconds a phase may take unless the model tags it ``long`` or the
 #: controller's ``phase_timeouts`` names it
 DEFAULT_PHASE_TIMEOUT = 60.0
+
+_new = object.__new__
+_OK = Alarm.ok
+#: what a MethodLog publishes as it is (fields._new_log's test)
+_PLAIN = frozenset({float, int, str, bool, type(None)})
 
 #: not yet looked up (None is a lookup's answer: no such method)
 _UNKNOWN: Any = object()
@@ -278,16 +288,48 @@ class Controller(Interpreter, Operations, Health):
             )
 
     async def call(self, name: str, params: Mapping[str, Any] | None = None) -> Any:
-        """Call method ``name``: arguments checked, then the model's rule."""
+        """Call method ``name``: arguments checked, then the model's rule.
+
+        The method's call plan (:mod:`malcolm.core.callplan`) checks the
+        arguments; on the loop, the took and returned are made here, in line
+        (what ``Method.set_took``/``set_returned`` do), the took held back
+        (:meth:`Process.hold`) to go with the returned as one batch
+        (:meth:`Process.complete`) if the method does not wait and publishes
+        nothing meanwhile."""
         method = self.block.method(name)
-        args = method.meta.validate_args(f"{self.mri}.{name}", params or {})
+        plan = method.args_plan
+        if plan is None or (args := plan(method.meta, params)) is None:
+            plan = method.args_plan = plan_args(method.meta, f"{self.mri}.{name}")
+            args = plan(method.meta, params)
         allowed = self.model.methods.get(name)  # check_allowed's test, in line
         if allowed is not None and self._state not in allowed:
             self.check_allowed(name)  # raises, naming the state
-        # the took held back: with the returned in one batch if the method
-        # does not wait and nothing else is published meanwhile (Process.hold)
         process = self.process
-        method.set_took(args, process.hold if process is not None else None)
+        owner = self.block.owner
+        # on the loop (the common case): the logs made here, in line; else
+        # by Method.set_took/set_returned (their loop guard refuses)
+        fast = process is not None and owner is not None and owner.thread == get_ident()
+        if fast:
+            # the took (set_took's work): the arguments are the plan's own dict
+            seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
+            stamp = _new(TimeStamp)  # TimeStamp.now(), in line
+            stamp.__dict__.update(
+                secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
+            )
+            took = method.took = _new(MethodLog)
+            took.__dict__ = {
+                "value": args,
+                "present": list(args),
+                "alarm": _OK,
+                "timeStamp": stamp,
+            }
+            held = process.hold(  # type: ignore[union-attr]
+                self.mri,
+                [[name, "took"], took if plan.scalars else took.to_dict()],
+                [name, "returned"],
+            )
+        else:
+            method.set_took(args, process.hold if process is not None else None)
         handler = method.handler
         try:
             result = handler(**args) if handler else None
@@ -310,10 +352,29 @@ class Controller(Interpreter, Operations, Health):
             if process is not None:
                 process.release()
             raise
-        if type(result) is dict or isinstance(result, Mapping):
-            method.set_returned(result, Alarm.ok)
-        else:
-            method.set_returned({}, Alarm.ok)
+        is_map = type(result) is dict or isinstance(result, Mapping)
+        if not fast:
+            method.set_returned(result if is_map else {}, Alarm.ok)
+            return result
+        # the returned (set_returned's work), with the took if still held
+        value = dict(result) if is_map and result else {}
+        seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
+        stamp = _new(TimeStamp)
+        stamp.__dict__.update(
+            secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
+        )
+        returned = method.returned = _new(MethodLog)
+        returned.__dict__ = {
+            "value": value,
+            "present": list(value),
+            "alarm": _OK,
+            "timeStamp": stamp,
+        }
+        if not _PLAIN.issuperset(map(type, value.values())):
+            returned = returned.to_dict()  # (what the method keeps may change)
+        change = [[name, "returned"], returned]
+        if not process.complete(held, change):  # type: ignore[union-attr]
+            self.block.notify([change])  # (it waited or published; not hosted: -)
         return result
 
     async def put(self, name: str, value: Any) -> None:

@@ -286,6 +286,9 @@ class Method(Field):
         self.handler = handler
         self.took = MethodLog()
         self.returned = MethodLog()
+        #: the arguments' plan of its meta (malcolm.core.callplan), made by
+        #: the first call; a call with another meta (or one changed) makes anew
+        self.args_plan: Any = None
 
     def set_took(
         self,

@@ -31,6 +31,7 @@ class Subscription:
         callback: Callback,
         delta: bool,
         below: Callback | None = None,
+        logs: Callback | None = None,
     ) -> None:
         self.path = list(path)
         #: the path below the mri, which the changes of a block are relative to
@@ -39,6 +40,9 @@ class Subscription:
         self.delta = delta
         #: gets the block's own changes lying below the path (see subscribe)
         self.below = below
+        #: gets a call's took and returned batch (see subscribe): ``logs``
+        #: if given, else ``below``
+        self.logs = logs or below
         #: the field subscribed to, for a path [mri, field] (else None)
         self.field: str | None = self.rest[0] if len(self.rest) == 1 else None
         self.active = True
@@ -295,6 +299,7 @@ class Process:
         callback: Callback,
         delta: bool = True,
         below: Callback | None = None,
+        logs: Callback | None = None,
     ) -> Subscription:
         """Subscribe; the callback gets the current value at once, then changes.
 
@@ -314,6 +319,13 @@ class Process:
         it: the :class:`~malcolm.core.MethodLog` itself when its values are
         all scalars (see ``fields._new_log``); every other callback gets
         plain data (its ``to_dict()``).
+
+        ``logs`` (with ``below``), if given, gets instead of ``below`` the
+        one batch of a call's took and returned (a method that does not
+        wait, see :meth:`hold`): always ``[[[name, "took"], took],
+        [[name, "returned"], returned]]``, ``name`` the method's (the
+        field subscribed to, or any method for a block's path), so that
+        it can set both with no test of each change.
         """
         if isinstance(path, str) or not path:
             raise NotFoundError(f"subscribe needs a path [mri, ...], got {path!r}")
@@ -321,12 +333,15 @@ class Process:
         if owner is not None and not owner.here():
             what = f"the subscriptions of {'.'.join(map(str, path))}"
             done, sub = owner.elsewhere(
-                what, self.subscribe, path, callback, delta, below
+                what, self.subscribe, path, callback, delta, below, logs
             )
             if done:
                 return sub
         value = self.get(path)
-        sub = Subscription(path, callback, delta, below if delta else None)
+        if delta and below is not None:
+            sub = Subscription(path, callback, delta, below, logs)
+        else:
+            sub = Subscription(path, callback, delta)
         self._subs.setdefault(sub.path[0], []).append(sub)
         self._deliver(sub, [[[], value]] if delta else value)
         return sub
@@ -382,17 +397,33 @@ class Process:
                 out.append([[], value] if exists else [[]])
         return out
 
-    def hold(self, mri: str, change: Change, until: list[str]) -> None:
+    def hold(self, mri: str, change: Change, until: list[str]) -> Any:
         """Publish ``change`` of block ``mri`` a little later: with the
         block's next change if that is the one change at ``until``, as one
         batch (``change`` first), else alone just before any other change of
         any block is published, or at :meth:`release`. So a call's took and
         returned, when its method does not wait, reach each subscriber as
         one batch, and nothing published meanwhile is seen before the took.
-        On the loop; one change is held at a time (a new one releases it)."""
+        On the loop; one change is held at a time (a new one releases it).
+        Returns what :meth:`complete` takes to publish the change at
+        ``until`` with it."""
         if self._held is not None:
             self.release()
-        self._held = (mri, change, until)
+        self._held = held = (mri, change, until)
+        return held
+
+    def complete(self, held: Any, change: Change) -> bool:
+        """Publish ``change`` (the one at ``until`` of what :meth:`hold`
+        gave ``held``) with the held change as one batch if that is still
+        held (nothing was published meanwhile): what ``Block.notify`` and
+        :meth:`_on_changes` would do with it (a call's returned, where it
+        was made: ``Controller.call``). False, with nothing published, if
+        it is not: the caller publishes ``change`` as the block's."""
+        if self._held is held:
+            self._held = None
+            self._on_logs(held[0], [held[1], change], held[2][0])
+            return True
+        return False
 
     def release(self) -> None:
         """Publish the change :meth:`hold` keeps back, if any, now."""
@@ -478,10 +509,13 @@ class Process:
                 field = sub.field
                 if field is not None:
                     if field == name:
-                        queue.append((sub, changes, below))
+                        queue.append((sub, changes, sub.logs))
                     continue
                 rest = sub.rest
-                touching = _below(rest, changes) if rest else changes
+                if not rest:  # a block's: the batch as it is
+                    queue.append((sub, changes, sub.logs))
+                    continue
+                touching = _below(rest, changes)
                 if touching is not None:  # (never None: nothing is replaced)
                     if touching:
                         queue.append((sub, touching, below))

@@ -27,6 +27,7 @@ from malcolm.core.fields import plain_changes
 
 from .channel_requests import ChannelRequests
 from .convert import assign, fits, spec_at, to_value, type_spec
+from .log_pair import LogPair, compile_log_pair
 from .ops import error_text
 from .results import version_tag
 from .setters import Setter, compile_setter
@@ -72,6 +73,9 @@ class _Channel(ChannelRequests):
         self._fast_ok = self.path[1:] != ["meta"]
         self._block = len(self.path) == 1  # the whole block's channel
         self._memo: list[Any] = []  # result_value's (ChannelRequests._rpc)
+        # method name -> its took and returned's pair function for self.spec
+        # (malcolm.io.pva.log_pair; False: none), reset with the setters
+        self._pairs: dict[str, Any] = {}
         self._skip = len(self.path) - 1  # what begins a block's path of it
 
     @property
@@ -108,6 +112,8 @@ class _Channel(ChannelRequests):
         self.type = value.type()
         self._update = None
         self._last.clear()
+        self._setters.clear()
+        self._pairs.clear()
         self.pv.open(value)
 
     def _next_update(self) -> Value:
@@ -129,7 +135,7 @@ class _Channel(ChannelRequests):
             return
         try:
             self.sub = self.server.process.subscribe(
-                self.path, self._on_changes, below=self._on_below
+                self.path, self._on_changes, below=self._on_below, logs=self._on_logs
             )
         except NotFoundError:  # gone between the look-up and now
             self.server._forget(self)
@@ -178,6 +184,53 @@ class _Channel(ChannelRequests):
             self._apply([[list(c[0][skip:]), *c[1:]] for c in changes])
         except Exception as e:  # a monitor must never stop the process
             log.exception("pva %s: %s", self.name, error_text(e))
+
+    def _on_logs(self, changes: list[list[Any]]) -> None:
+        """A call's took and returned, one batch (``Process.subscribe``'s
+        ``logs``: ``[[[name, "took"], took], [[name, "returned"],
+        returned]]``): set by the method's pair function
+        (:mod:`malcolm.io.pva.log_pair`) and posted; anything it does not
+        take goes as :meth:`_on_below` would take it."""
+        try:
+            if self.closed:
+                return
+            pair = self._pairs.get(changes[0][0][0])
+            if pair is None and self._data is not None:
+                name = changes[0][0][0]
+                pair = self._pairs[name] = self._log_pair(name)
+            if pair:  # (made once the channel has its data)
+                value = self._update  # self._next_update(), in line
+                if value is None:
+                    value = self._update = Value(self.type)
+                else:
+                    value.unmark()
+                try:
+                    if pair(value, changes):
+                        _post(self.pv, value)
+                        return
+                except (AttributeError, TypeError, ValueError):
+                    pass  # (not the core's logs: as _on_below takes them)
+                self._last.clear()  # (leaves it set, not posted)
+            self._on_below(changes)
+        except Exception as e:  # a monitor must never stop the process
+            log.exception("pva %s: %s", self.name, error_text(e))
+
+    def _log_pair(self, name: str) -> LogPair | bool:
+        """Method ``name``'s pair function for this channel's type, or
+        False if it has none (the block meta's channel, another shape)."""
+        if not self._fast_ok:
+            return False
+        skip = self._skip
+        took = (name, "took")[skip:]
+        returned = (name, "returned")[skip:]
+        took_spec = spec_at(self.spec, took)
+        returned_spec = spec_at(self.spec, returned)
+        if took_spec is None or returned_spec is None:
+            return False
+        pair = compile_log_pair(
+            (took_spec, took), (returned_spec, returned), self._last, self._pending
+        )
+        return pair or False
 
     def _apply(self, changes: list[list[Any]]) -> None:
         if self.closed:
@@ -294,6 +347,7 @@ class _Channel(ChannelRequests):
 
     def _reopen(self, spec: Any = None) -> None:
         self._setters.clear()
+        self._pairs.clear()
         self._last.clear()
         self.spec = spec or type_spec(self.data)
         value = to_value(self.data)
@@ -351,10 +405,11 @@ class _Handler:
             self.chan.put(pv, op)
 
     def rpc(self, pv: SharedPV, op: Any) -> None:
-        if self.chan is None:
+        chan = self.chan
+        if chan is None:
             op.done(error="NotFoundError: the channel is closed")
-        else:
-            self.chan.rpc(pv, op)
+        else:  # chan.rpc(pv, op), in line: once per call
+            chan.server._ops.start(op, chan._rpc(op))
 
 
 def _apply_changes(data: Any, changes: list[list[Any]]) -> Any:

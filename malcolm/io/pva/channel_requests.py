@@ -43,6 +43,7 @@ class ChannelRequests:
     _pending: dict[tuple[str, ...], Any]
     _data: Any
     data: Any
+    _block: bool  # the whole block's channel (its path is [mri])
     #: result_value's memo of a method channel's last result (see _rpc)
     _memo: list[Any]
 
@@ -86,7 +87,8 @@ class ChannelRequests:
     async def _rpc(self, op: Any) -> None:
         value = op.value()
         path = self.path
-        if len(path) != 2 or not isinstance(value, Value) or value.getID() != STRUCTURE:
+        # (a channel's path is [mri] (a block's: _block) or [mri, field])
+        if self._block or not isinstance(value, Value) or value.getID() != STRUCTURE:
             mri, method, args = method_args(path, value, op.pvRequest)
             result = await self.server.process.post([mri, method], args)
             op.done(result_value(result, self._returns(mri, method)))
