@@ -64,6 +64,24 @@ _OK = Alarm.ok
 #: what a MethodLog publishes as it is (fields._new_log's test)
 _PLAIN = frozenset({float, int, str, bool, type(None)})
 
+
+def _ok_log(value: dict[str, Any]) -> MethodLog:
+    """A MethodLog of ``value`` (all present), no alarm, stamped now: what
+    ``Method.set_took``/``set_returned`` make, built without their checks
+    (``Controller.call``'s took and returned on the loop)."""
+    seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
+    stamp = _new(TimeStamp)  # TimeStamp.now(), in line
+    stamp.__dict__.update(secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0)
+    log = _new(MethodLog)
+    log.__dict__ = {
+        "value": value,
+        "present": list(value),
+        "alarm": _OK,
+        "timeStamp": stamp,
+    }
+    return log
+
+
 #: not yet looked up (None is a lookup's answer: no such method)
 _UNKNOWN: Any = object()
 
@@ -311,18 +329,7 @@ class Controller(Interpreter, Operations, Health):
         fast = process is not None and owner is not None and owner.thread == get_ident()
         if fast:
             # the took (set_took's work): the arguments are the plan's own dict
-            seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
-            stamp = _new(TimeStamp)  # TimeStamp.now(), in line
-            stamp.__dict__.update(
-                secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
-            )
-            took = method.took = _new(MethodLog)
-            took.__dict__ = {
-                "value": args,
-                "present": list(args),
-                "alarm": _OK,
-                "timeStamp": stamp,
-            }
+            took = method.took = _ok_log(args)
             held = process.hold(  # type: ignore[union-attr]
                 self.mri,
                 [[name, "took"], took if plan.scalars else took.to_dict()],
@@ -358,18 +365,7 @@ class Controller(Interpreter, Operations, Health):
             return result
         # the returned (set_returned's work), with the took if still held
         value = dict(result) if is_map and result else {}
-        seconds, nanoseconds = divmod(time_ns(), 1_000_000_000)
-        stamp = _new(TimeStamp)
-        stamp.__dict__.update(
-            secondsPastEpoch=seconds, nanoseconds=nanoseconds, userTag=0
-        )
-        returned = method.returned = _new(MethodLog)
-        returned.__dict__ = {
-            "value": value,
-            "present": list(value),
-            "alarm": _OK,
-            "timeStamp": stamp,
-        }
+        returned = method.returned = _ok_log(value)
         if not _PLAIN.issuperset(map(type, value.values())):
             returned = returned.to_dict()  # (what the method keeps may change)
         change = [[name, "returned"], returned]
