@@ -8,6 +8,7 @@ client configuration that finds it (``EPICS_PVA_*`` keys).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
@@ -88,16 +89,43 @@ class Served:
         return out
 
 
+def server_conf(udp_port: int) -> dict[str, str]:
+    """pvAccess server settings: 127.0.0.1 only, searched on ``udp_port``."""
+    return {
+        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
+        "EPICS_PVAS_BROADCAST_PORT": str(udp_port),
+        "EPICS_PVAS_BEACON_ADDR_LIST": f"127.0.0.1:{udp_port}",
+        "EPICS_PVAS_AUTO_BEACON_ADDR_LIST": "NO",
+    }
+
+
 def server_env(port: int, udp_port: int) -> dict[str, str]:
     env = dict(os.environ)
-    env.update(
-        EPICS_PVAS_INTF_ADDR_LIST="127.0.0.1",
-        EPICS_PVAS_BROADCAST_PORT=str(udp_port),
-        EPICS_PVAS_BEACON_ADDR_LIST=f"127.0.0.1:{udp_port}",
-        EPICS_PVAS_AUTO_BEACON_ADDR_LIST="NO",
-        PYTHONUNBUFFERED="1",
-    )
+    env.update(server_conf(udp_port), PYTHONUNBUFFERED="1")
     return env
+
+
+@contextlib.contextmanager
+def served_in_process(process: Any) -> Iterator[tuple[Any, Any, Any]]:
+    """``process`` started in a thread and served over pvAccess in this
+    process (free ports), with a p4p client of it: ``(tp, server, ctx)``;
+    all three closed on the way out."""
+    from p4p.client.thread import Context
+
+    from malcolm.embed import start_process
+    from malcolm.io.pva import start_pva_server
+
+    tp = start_process(process)
+    udp = free_port(socket.SOCK_DGRAM)
+    conf = server_conf(udp)
+    server = process.call_threadsafe(start_pva_server, process, 0, conf).result(10)
+    ctx = Context("pva", conf=client_conf(udp), useenv=False, nt=False)
+    try:
+        yield tp, server, ctx
+    finally:
+        ctx.close()
+        process.call_threadsafe(server.close).result(10)
+        tp.stop()
 
 
 def launch(*args: str, port: int | None = None, udp_port: int | None = None) -> Served:

@@ -6,7 +6,6 @@ process holds (an in-process server on free ports, a p4p client)."""
 from __future__ import annotations
 
 import queue
-import socket
 from typing import Any
 
 import pytest
@@ -15,11 +14,9 @@ from p4p.client.thread import Context, RemoteError
 
 from malcolm.controllers.base import Controller
 from malcolm.core import MapMeta, Method, MethodMeta, NumberMeta, Process, StringMeta
-from malcolm.embed import start_process
-from malcolm.io.pva import start_pva_server
 from malcolm.parts import Part
 
-from .conftest import client_conf, free_port
+from .conftest import served_in_process
 from .p4p_monitor import monitor
 
 
@@ -40,20 +37,8 @@ def served():
     process = Process("plan")
     part = Greeter("p")
     process.add_controller(Controller("G", [part]))
-    tp = start_process(process)
-    udp = free_port(socket.SOCK_DGRAM)
-    conf = {
-        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
-        "EPICS_PVAS_BROADCAST_PORT": str(udp),
-        "EPICS_PVAS_BEACON_ADDR_LIST": f"127.0.0.1:{udp}",
-        "EPICS_PVAS_AUTO_BEACON_ADDR_LIST": "NO",
-    }
-    server = process.call_threadsafe(start_pva_server, process, 0, conf).result(10)
-    ctx = Context("pva", conf=client_conf(udp), useenv=False, nt=False)
-    yield process, part, ctx
-    ctx.close()
-    process.call_threadsafe(server.close).result(10)
-    tp.stop()
+    with served_in_process(process) as (_, _, ctx):
+        yield process, part, ctx
 
 
 def _call(ctx: Context, channel: str, **args: Any) -> Any:

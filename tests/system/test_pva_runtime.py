@@ -12,11 +12,9 @@ from p4p.client.thread import Disconnected, TimeoutError
 
 from malcolm.controllers.stateful import StatefulController
 from malcolm.core import Process
-from malcolm.embed import start_process
-from malcolm.io.pva import start_pva_server
 from malcolm.parts.demo import CounterPart
 
-from .conftest import client_conf, free_port
+from .conftest import served_in_process
 from .p4p_monitor import monitor
 
 
@@ -24,22 +22,8 @@ from .p4p_monitor import monitor
 def served():
     process = Process("runtime")
     process.add_controller(StatefulController("FIRST", [CounterPart("counter")]))
-    tp = start_process(process)
-    udp = free_port(socket.SOCK_DGRAM)
-    conf = {
-        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
-        "EPICS_PVAS_BROADCAST_PORT": str(udp),
-        "EPICS_PVAS_BEACON_ADDR_LIST": f"127.0.0.1:{udp}",
-        "EPICS_PVAS_AUTO_BEACON_ADDR_LIST": "NO",
-    }
-    server = process.call_threadsafe(start_pva_server, process, 0, conf).result(10)
-    from p4p.client.thread import Context
-
-    ctx = Context("pva", conf=client_conf(udp), useenv=False, nt=False)
-    yield tp, process, server, ctx
-    ctx.close()
-    process.call_threadsafe(server.close).result(10)
-    tp.stop()
+    with served_in_process(process) as (tp, server, ctx):
+        yield tp, process, server, ctx
 
 
 def add_block(process: Process, mri: str) -> None:
