@@ -32,7 +32,7 @@ def _settled(error: str) -> BaseException | None:
         channel = PyepicsChannel("T:M1.RBV", "T:M1", None)
         channel._loop = asyncio.get_running_loop()
         fut = channel._future()
-        channel._settle(fut, None, error)
+        channel._settle(fut, None, error, channel.write)  # as a put's done does
         return fut.exception()
 
     return asyncio.run(scenario())

@@ -49,7 +49,7 @@ from ..channel import (
     DisconnectedError,
     Reading,
 )
-from .link import PUT_DISCONNECTED, Link, Payload, link
+from .link import Link, Payload, link
 
 __all__ = ["GET_TIMEOUT", "PVFanout", "PyepicsBackend", "PyepicsChannel"]
 
@@ -444,8 +444,6 @@ class PyepicsChannel(Channel):
             return
         if error.startswith("put failed"):
             fut.set_exception(ChannelError(f"{self.write}: {error}"))
-        elif error.startswith(PUT_DISCONNECTED):
-            fut.set_exception(DisconnectedError(f"{self.write}: {error}"))
         elif error:
             fut.set_exception(DisconnectedError(f"{pv or self.read}: {error}"))
         else:
